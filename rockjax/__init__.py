@@ -1,0 +1,42 @@
+"""rockjax: a differentiable simulator of rigid structures rocking on a two-spring foundation.
+
+Implements "Simplified Expressions for Modelling Rigid Rocking Structures on Two-spring
+Foundations": the SDOF equation of motion (Eq. 1), its closed-form restoring forces
+(Eqs 4-20) and the geometrically exact numerical pushover they were checked against.
+
+rockjax enables JAX's 64-bit mode on import (float64 is the default dtype of every result);
+pass float32 arrays explicitly, e.g. ``structure.astype(jnp.float32)``, for the fast mode.
+"""
+
+import jax as _jax
+
+_jax.config.update("jax_enable_x64", True)
+
+from ._kinematics import (  # noqa: E402
+    theta_from_u as theta_from_u,
+    u_from_theta as u_from_theta,
+    uplift as uplift,
+    uplift_from_theta as uplift_from_theta,
+)
+from ._pushover import (  # noqa: E402
+    overturn_displacement as overturn_displacement,
+    pushover as pushover,
+    PushoverResult as PushoverResult,
+)
+from ._restoring import (  # noqa: E402
+    AbstractRestoringForce as AbstractRestoringForce,
+    Exact as Exact,
+    get_model as get_model,
+    Housner as Housner,
+    MODELS as MODELS,
+    restoring_force as restoring_force,
+    Simplified as Simplified,
+    Smooth as Smooth,
+)
+from ._structure import (  # noqa: E402
+    DERIVED as DERIVED,
+    mcmanus_column as mcmanus_column,
+    RockingStructure as RockingStructure,
+)
+
+__version__ = "0.1.0"

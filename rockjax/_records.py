@@ -1,0 +1,479 @@
+"""Readers for ground-motion acceleration records (pure NumPy).
+
+Three plain-text layouts are supported:
+
+- **PEER AT2** (``format="at2"``): four header lines, the fourth holding the number of
+  points and the time step, e.g. ``NPTS=  4000, DT= .01000 SEC`` (old PEER/PEA header),
+  ``NPTS =   7500 , DT =   .020 SEC ,`` (NGA-West2 header) or ``4000  0.0100  NPTS, DT``
+  (2005 NGA header). The accelerations follow, any number per line, in units of g unless
+  the header says otherwise.
+- **Two columns** (``format="two_column"``): time [s] and acceleration, separated by
+  whitespace, tabs or commas, optionally preceded by text header lines. The time step must
+  be uniform.
+- **One column** (``format="one_column"``): one acceleration per line, optionally preceded
+  by text header lines; the time step must be given with ``dt=``.
+
+Every record is returned as a :class:`Record` in SI units (m/s²). The first sample is
+taken to be at ``t = 0`` of the simulation: a two-column record whose time column starts at
+``t0 != 0`` is shifted so that its first sample is at ``t = 0`` (``t0`` is discarded).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["G_STANDARD", "Record", "read_record"]
+
+G_STANDARD = 9.80665
+"""Standard gravity [m/s²], used to convert records given in units of g."""
+
+_FORMATS = ("at2", "two_column", "one_column")
+
+_UNIT_ALIASES = {
+    "g": "g",
+    "m/s2": "m/s2",
+    "m/s^2": "m/s2",
+    "m/s**2": "m/s2",
+    "m/s/s": "m/s2",
+    "m/sec2": "m/s2",
+    "m/sec^2": "m/s2",
+    "m/sec/sec": "m/s2",
+    "mps2": "m/s2",
+}
+# Units that a header may state but that this reader does not convert.
+_UNSUPPORTED_UNITS = (
+    "cm/s2",
+    "cm/s^2",
+    "cm/s**2",
+    "cm/s/s",
+    "cm/sec2",
+    "cm/sec^2",
+    "cm/sec/sec",
+    "gal",
+    "mm/s2",
+    "mm/s^2",
+    "in/s2",
+    "in/s^2",
+    "in/sec/sec",
+    "cm",
+    "mm",
+    "gals",
+)
+
+_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?"
+_NUM_RE = re.compile(_NUM)
+_NONFINITE_RE = re.compile(r"[+-]?(?:nan|inf(?:inity)?)", re.IGNORECASE)
+_SPLIT_RE = re.compile(r"[\s,]+")
+_NPTS_DT_RE = re.compile(rf"NPTS\s*[=:]?\s*(\d+)\s*[,;]?\s*DT\s*[=:]?\s*({_NUM})", re.IGNORECASE)
+_NPTS_DT_OLD_RE = re.compile(rf"^\s*(\d+)\s*[,;]?\s+({_NUM})\s+NPTS\s*,\s*DT", re.IGNORECASE)
+# "UNITS OF G", "units are (g)", "in units of cm/sec/sec", "Units: m/s^2"
+_UNITS_PHRASE_RE = re.compile(
+    r"\bUNITS(?:\s+(?:OF|ARE|IN)\b|\s*[:=])\s*[:=]?\s*[(\[]?\s*([A-Za-z][A-Za-z0-9/^*]*)",
+    re.IGNORECASE,
+)
+# "Accel[g]", "Acceleration (m/s^2)", "a [cm/s2]"
+_UNITS_BRACKET_RE = re.compile(r"[(\[]\s*([A-Za-z][A-Za-z0-9/^*]*)\s*[)\]]")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Record:
+    """A uniformly sampled ground-acceleration record in SI units.
+
+    The first sample is at ``t = 0`` and sample ``i`` is at ``t = i * dt``.
+
+    Attributes
+    ----------
+    dt : float
+        Uniform sample step [s], finite and > 0.
+    accel : numpy.ndarray
+        Ground acceleration [m/s²], read-only float64 1-D array, finite, length >= 2.
+    source : str
+        File path (or a description) of where the record came from.
+    description : str
+        Header text of the file, if any (``""`` otherwise).
+    units_in_file : str
+        Units of the values in the file, ``"g"`` or ``"m/s2"``; ``accel`` is always m/s².
+
+    Notes
+    -----
+    Instances compare and hash by identity (``accel`` is an array).
+    """
+
+    dt: float
+    accel: np.ndarray
+    source: str = ""
+    description: str = ""
+    units_in_file: str = "m/s2"
+
+    def __post_init__(self) -> None:
+        dt = float(self.dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"Record: dt must be finite and > 0 [s], got {self.dt!r}")
+        accel = np.array(self.accel, dtype=np.float64, copy=True)
+        if accel.ndim != 1:
+            raise ValueError(f"Record: accel must be 1-D, got shape {accel.shape}")
+        if accel.size < 2:
+            raise ValueError(f"Record: accel needs at least 2 samples, got {accel.size}")
+        if not np.all(np.isfinite(accel)):
+            raise ValueError("Record: accel contains NaN or inf values")
+        if self.units_in_file not in ("g", "m/s2"):
+            raise ValueError(
+                f"Record: units_in_file must be 'g' or 'm/s2', got {self.units_in_file!r}"
+            )
+        accel.setflags(write=False)
+        object.__setattr__(self, "dt", dt)
+        object.__setattr__(self, "accel", accel)
+        object.__setattr__(self, "source", str(self.source))
+        object.__setattr__(self, "description", str(self.description))
+
+    @property
+    def npts(self) -> int:
+        """Number of samples."""
+        return int(self.accel.size)
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times ``i * dt`` [s], starting at 0."""
+        return np.arange(self.accel.size, dtype=np.float64) * self.dt
+
+    @property
+    def pga(self) -> float:
+        """Peak ground acceleration ``max |accel|`` [m/s²]."""
+        return float(np.max(np.abs(self.accel)))
+
+    def __repr__(self) -> str:
+        return (
+            f"Record(dt={self.dt!r}, npts={self.npts}, pga={self.pga:.4g} m/s2, "
+            f"source={self.source!r}, units_in_file={self.units_in_file!r})"
+        )
+
+
+def _normalize_units(units: str) -> str:
+    key = str(units).strip().lower().replace(" ", "").replace("²", "^2")
+    try:
+        return _UNIT_ALIASES[key]
+    except KeyError:
+        raise ValueError(
+            f"unknown units={units!r}; expected 'g' or 'm/s2' (also 'm/s^2', 'mps2')"
+        ) from None
+
+
+def _classify_unit_token(token: str) -> str | None:
+    """Return 'g', 'm/s2', 'unsupported' or None for a unit token found in a header."""
+    key = token.strip().lower().rstrip("/*^")
+    if key in _UNIT_ALIASES:
+        return _UNIT_ALIASES[key]
+    if key in _UNSUPPORTED_UNITS:
+        return "unsupported"
+    return None
+
+
+def _units_from_header(header: str, source: str) -> str | None:
+    """Units stated in the header text, or None when the header says nothing recognizable.
+
+    Raises ValueError when the header states units that this reader cannot convert
+    (e.g. cm/s², or the cm/sec of a velocity record).
+    """
+    header = header.replace("²", "^2")
+    found: list[tuple[str, str]] = []
+    for m in _UNITS_PHRASE_RE.finditer(header):
+        token = m.group(1)
+        kind = _classify_unit_token(token)
+        if kind is None and "/" in token:
+            kind = "unsupported"  # e.g. "UNITS OF CM/SEC" (a velocity record)
+        if kind is not None:
+            found.append((kind, token))
+    for m in _UNITS_BRACKET_RE.finditer(header):
+        token = m.group(1)
+        kind = _classify_unit_token(token)
+        if kind is not None:
+            found.append((kind, token))
+    if not found:
+        return None
+    bad = [tok for kind, tok in found if kind == "unsupported"]
+    if bad:
+        raise ValueError(
+            f"{source}: the header states units {bad[0]!r}, which are not supported; "
+            "records must be in g or m/s2 (pass units='g' or units='m/s2' to override "
+            "if the header is wrong)"
+        )
+    kinds = {kind for kind, _ in found}
+    if len(kinds) > 1:
+        raise ValueError(
+            f"{source}: the header states conflicting units {sorted(kinds)}; "
+            "pass units='g' or units='m/s2'"
+        )
+    return kinds.pop()
+
+
+def _tokens(line: str) -> list[str]:
+    return [tok for tok in _SPLIT_RE.split(line.strip()) if tok]
+
+
+def _parse_tokens(tokens: list[str]) -> list[float] | None:
+    """Parse all tokens as floats (NaN/inf included); None if any token is not a number."""
+    out = []
+    for tok in tokens:
+        if _NUM_RE.fullmatch(tok):
+            out.append(float(tok.replace("d", "e").replace("D", "e")))
+        elif _NONFINITE_RE.fullmatch(tok):
+            out.append(float(tok))
+        else:
+            return None
+    return out
+
+
+def _check_finite(values: list[float], source: str, lineno: int, line: str) -> None:
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(
+            f"{source}, line {lineno}: non-finite value (NaN or inf) in {line.strip()!r}"
+        )
+
+
+def _non_numeric(source: str, lineno: int, line: str) -> ValueError:
+    text = line.strip()
+    if len(text) > 80:
+        text = text[:77] + "..."
+    return ValueError(f"{source}, line {lineno}: non-numeric data in data section: {text!r}")
+
+
+def _check_dt_arg(dt_arg: float | None, dt_file: float, source: str) -> None:
+    if dt_arg is not None and abs(dt_arg - dt_file) > 1e-6 * dt_file + 1e-12:
+        raise ValueError(
+            f"{source}: dt={dt_arg!r} was passed but the file has a time step of "
+            f"{dt_file!r} s; omit dt= for this file"
+        )
+
+
+def _match_npts_dt(line: str) -> tuple[int, float] | None:
+    m = _NPTS_DT_RE.search(line) or _NPTS_DT_OLD_RE.search(line)
+    if m is None:
+        return None
+    return int(m.group(1)), float(m.group(2).replace("d", "e").replace("D", "e"))
+
+
+def _read_at2(
+    lines: list[str], source: str, units: str | None, dt_arg: float | None
+) -> tuple[float, np.ndarray, str, str]:
+    if len(lines) < 4:
+        raise ValueError(
+            f"{source}: a PEER AT2 file needs 4 header lines, found only {len(lines)} lines"
+        )
+    npts_dt = _match_npts_dt(lines[3])
+    if npts_dt is None:
+        raise ValueError(
+            f"{source}, line 4: expected the PEER AT2 header 'NPTS= ..., DT= ... SEC', "
+            f"got {lines[3].strip()!r} (pass format= if this is not an AT2 file)"
+        )
+    npts, dt = npts_dt
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"{source}, line 4: DT must be > 0 [s], got DT={dt!r}")
+    _check_dt_arg(dt_arg, dt, source)
+    if units is None:
+        units = _units_from_header("\n".join(lines[:3]), source) or "g"
+    values: list[float] = []
+    for lineno, line in enumerate(lines[4:], start=5):
+        toks = _tokens(line)
+        if not toks:
+            continue
+        vals = _parse_tokens(toks)
+        if vals is None:
+            raise _non_numeric(source, lineno, line)
+        _check_finite(vals, source, lineno, line)
+        values.extend(vals)
+    if len(values) != npts:
+        raise ValueError(
+            f"{source}: the header says NPTS={npts} but {len(values)} values were found "
+            "in the data section"
+        )
+    description = "\n".join(line.rstrip() for line in lines[:4])
+    return dt, np.asarray(values, dtype=np.float64), units, description
+
+
+def _read_columns(
+    lines: list[str], source: str, ncols: int
+) -> tuple[np.ndarray, list[int], list[str]]:
+    """Read leading text header lines, then rows of exactly `ncols` numbers."""
+    header: list[str] = []
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    for lineno, line in enumerate(lines, start=1):
+        toks = _tokens(line)
+        if not toks:
+            continue
+        vals = _parse_tokens(toks)
+        if not rows and vals is None:
+            header.append(line.rstrip())
+            continue
+        if vals is None:
+            raise _non_numeric(source, lineno, line)
+        if len(vals) != ncols:
+            what = "2 columns (time, acceleration)" if ncols == 2 else "1 column (acceleration)"
+            raise ValueError(
+                f"{source}, line {lineno}: expected {what}, found {len(vals)} values "
+                f"in {line.strip()[:80]!r}"
+            )
+        _check_finite(vals, source, lineno, line)
+        rows.append(vals)
+        linenos.append(lineno)
+    if not rows:
+        raise ValueError(f"{source}: no numeric data found (empty file or header only)")
+    return np.asarray(rows, dtype=np.float64).reshape(-1, ncols), linenos, header
+
+
+def _uniform_dt(t: np.ndarray, linenos: list[int], source: str) -> float:
+    d = np.diff(t)
+    bad = np.flatnonzero(d <= 0.0)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"{source}, line {linenos[i + 1]}: time is not strictly increasing "
+            f"(t={t[i + 1]!r} s after t={t[i]!r} s)"
+        )
+    dt_med = float(np.median(d))
+    dev = np.abs(d - dt_med)
+    bad = np.flatnonzero(dev > 1e-6 * dt_med + 1e-9)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"{source}, line {linenos[i + 1]}: non-uniform time step: "
+            f"step {d[i]!r} s from t={t[i]!r} s differs from the median step {dt_med!r} s"
+        )
+    return float((t[-1] - t[0]) / (t.size - 1))
+
+
+def _detect_format(lines: list[str], path: Path, source: str) -> str:
+    if path.suffix.lower() == ".at2":
+        return "at2"
+    if len(lines) >= 4 and _match_npts_dt(lines[3]) is not None:
+        return "at2"
+    for lineno, line in enumerate(lines, start=1):
+        toks = _tokens(line)
+        if not toks:
+            continue
+        vals = _parse_tokens(toks)
+        if vals is None:
+            continue
+        if len(vals) == 2:
+            return "two_column"
+        if len(vals) == 1:
+            return "one_column"
+        raise ValueError(
+            f"{source}, line {lineno}: cannot detect the file format from {len(vals)} values "
+            f"per line; pass format='at2', 'two_column' or 'one_column'"
+        )
+    raise ValueError(f"{source}: no numeric data found (empty file or header only)")
+
+
+def read_record(
+    path: str | os.PathLike[str],
+    *,
+    units: str | None = None,
+    dt: float | None = None,
+    format: str | None = None,
+) -> Record:
+    """Read a ground-acceleration record from a text file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to read.
+    units : {"g", "m/s2"}, optional
+        Units of the acceleration values in the file (``"m/s^2"`` and ``"mps2"`` are
+        accepted for m/s²). Overrides whatever the header says. When omitted: for AT2
+        files the header phrase ``UNITS OF G`` is used and g is the default; for one- and
+        two-column files the header must state the units (e.g. ``Accel[g]``), otherwise
+        a ValueError asks for ``units=``.
+    dt : float, optional
+        Time step [s], > 0. Required for one-column files. For AT2 and two-column files
+        the step comes from the file; a ``dt`` passed as well must agree with it.
+    format : {"at2", "two_column", "one_column"}, optional
+        File layout; detected when omitted (``.AT2`` suffix or an ``NPTS=..., DT=...``
+        fourth line means AT2, otherwise the number of values on the first numeric line).
+
+    Returns
+    -------
+    Record
+        ``accel`` in m/s² (values in g are multiplied by ``G_STANDARD`` = 9.80665 m/s²),
+        first sample at ``t = 0``. A two-column record whose time starts at ``t0 != 0``
+        is shifted to start at 0, and its ``dt`` is ``(t[-1] - t[0]) / (n - 1)``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If `path` does not exist.
+    ValueError
+        For unknown `units` or `format`, a missing or non-positive `dt`, and malformed
+        files: no data, non-numeric text or NaN/inf in the data section (the message
+        names the line), an NPTS count that does not match the values found, a time
+        column that is not strictly increasing or not uniform, or fewer than 2 samples.
+        Messages name the file.
+    """
+    source = os.fspath(path)
+    p = Path(source)
+    if units is not None:
+        units = _normalize_units(units)
+    if dt is not None:
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be finite and > 0 [s], got dt={dt!r}")
+    if format is not None:
+        fmt = str(format).strip().lower().replace("-", "_")
+        if fmt not in _FORMATS:
+            raise ValueError(
+                f"unknown format={format!r}; expected one of {', '.join(map(repr, _FORMATS))}"
+            )
+        format = fmt
+    if not p.exists():
+        raise FileNotFoundError(f"ground-motion record not found: {source}")
+    if p.is_dir():
+        raise IsADirectoryError(f"ground-motion record path is a directory: {source}")
+
+    text = p.read_text(encoding="utf-8", errors="replace")
+    lines = text.splitlines()
+    if not text.strip():
+        raise ValueError(f"{source}: file is empty (no data)")
+    if format is None:
+        format = _detect_format(lines, p, source)
+
+    if format == "at2":
+        dt_file, accel, units, description = _read_at2(lines, source, units, dt)
+    else:
+        ncols = 2 if format == "two_column" else 1
+        if ncols == 1 and dt is None:
+            raise ValueError(
+                f"{source}: a one-column file has no time information; pass dt=<time step in s>"
+            )
+        data, linenos, header = _read_columns(lines, source, ncols)
+        accel = data[:, -1]
+        if accel.size < 2:
+            raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
+        if ncols == 2:
+            dt_file = _uniform_dt(data[:, 0], linenos, source)
+            _check_dt_arg(dt, dt_file, source)
+        else:
+            dt_file = float(dt)  # type: ignore[arg-type]
+        description = "\n".join(header).strip()
+        if units is None:
+            units = _units_from_header(description, source)
+            if units is None:
+                raise ValueError(
+                    f"{source}: the units of the acceleration are not stated in the file; "
+                    "pass units='g' or units='m/s2'"
+                )
+    if accel.size < 2:
+        raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
+    scale = G_STANDARD if units == "g" else 1.0
+    return Record(
+        dt=dt_file,
+        accel=accel * scale,
+        source=source,
+        description=description,
+        units_in_file=units,
+    )

@@ -1,0 +1,203 @@
+"""On-demand access to the 1940 El Centro NS ground-motion record.
+
+Provenance
+----------
+The record is ``IELC180.AT2``: the 1940 Imperial Valley earthquake (19 May 1940) recorded
+at El Centro Array #9 (USGS station 117), 180 component (north-south), from the pre-NGA
+PEER Strong Motion Database, processed by Pacific Engineering & Analysis (0.2-15 Hz
+band-pass). It has 4000 samples at dt = 0.01 s (40 s) in units of g, PGA 0.3129 g
+(3.068 m/s²). The underlying accelerogram is a USGS record distributed by PEER.
+
+The file is fetched from the OpenSees repository (``OpenSees/OpenSees``, path
+``Workshops/OpenSeesDays/IELC180.AT2``, commit
+``2890cb36f59b5a707c607c63a831606f325adb7c``), pinned by commit and checked against a
+SHA-256 hash. The OpenSees ``COPYRIGHT`` (UC Regents) permits use, reproduction,
+modification and distribution for educational, research and non-profit purposes only, on
+a noncommercial basis. For that reason rockjax never commits or ships the record: it is
+downloaded into a user cache on first use, or read from a local copy that you provide.
+
+Resolution order (see :func:`el_centro_path`):
+
+1. the ``local=`` argument (the file, or a directory containing ``IELC180.AT2``);
+2. the environment variable ``ROCKJAX_EL_CENTRO`` (same meaning);
+3. the cache file ``cache_dir() / "IELC180.AT2"``;
+4. a download from :data:`EL_CENTRO_URL` into the cache (only with ``download=True``).
+
+The cache directory is ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax``, else
+``~/.cache/rockjax``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import pathlib
+import shutil
+import tempfile
+import urllib.request
+
+from rockjax._records import read_record, Record
+
+__all__ = [
+    "EL_CENTRO_FILENAME",
+    "EL_CENTRO_SHA256",
+    "EL_CENTRO_URL",
+    "cache_dir",
+    "el_centro",
+    "el_centro_path",
+]
+
+EL_CENTRO_URL = (
+    "https://raw.githubusercontent.com/OpenSees/OpenSees/"
+    "2890cb36f59b5a707c607c63a831606f325adb7c/Workshops/OpenSeesDays/IELC180.AT2"
+)
+EL_CENTRO_SHA256 = "edcd5353db8a9305227293142a3b8b8a7622b273f886c5e739dea451f0111063"
+EL_CENTRO_FILENAME = "IELC180.AT2"
+
+_ENV_LOCAL = "ROCKJAX_EL_CENTRO"
+_ENV_CACHE = "ROCKJAX_CACHE"
+_TIMEOUT_S = 30.0
+
+_HOW_TO_POINT = (
+    f"Point rockjax at a local copy of {EL_CENTRO_FILENAME} (SHA-256 {EL_CENTRO_SHA256}) "
+    f"with el_centro(local='/path/to/{EL_CENTRO_FILENAME}') or the environment variable "
+    f"{_ENV_LOCAL}=/path/to/{EL_CENTRO_FILENAME} (a directory containing it also works). "
+    f"The file is available from {EL_CENTRO_URL}"
+)
+
+
+def cache_dir() -> pathlib.Path:
+    """Directory where downloaded records are cached.
+
+    Returns
+    -------
+    pathlib.Path
+        ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax``, else
+        ``~/.cache/rockjax``. The directory is not created here.
+    """
+    env = os.environ.get(_ENV_CACHE)
+    if env:
+        return pathlib.Path(env).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg:
+        return pathlib.Path(xdg).expanduser() / "rockjax"
+    return pathlib.Path.home() / ".cache" / "rockjax"
+
+
+def _sha256(path: pathlib.Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 16), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _verify(path: pathlib.Path, *, hint: str = "") -> None:
+    actual = _sha256(path)
+    if actual != EL_CENTRO_SHA256:
+        raise ValueError(
+            f"SHA-256 mismatch for {path}: expected {EL_CENTRO_SHA256}, got {actual}. "
+            f"This is not the expected {EL_CENTRO_FILENAME} record.{hint}"
+        )
+
+
+def _download(url: str, dest: pathlib.Path) -> None:
+    """Download `url` to the file `dest` (overwritten), with a 30 s timeout."""
+    with urllib.request.urlopen(url, timeout=_TIMEOUT_S) as response, open(dest, "wb") as f:
+        shutil.copyfileobj(response, f)
+
+
+def _resolve_local(value: str | os.PathLike[str], origin: str) -> pathlib.Path:
+    path = pathlib.Path(value).expanduser()
+    if path.is_dir():
+        path = path / EL_CENTRO_FILENAME
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"El Centro record not found at {path} (given by {origin}). {_HOW_TO_POINT}"
+        )
+    _verify(path)
+    return path
+
+
+def el_centro_path(
+    *, local: str | os.PathLike[str] | None = None, download: bool = True
+) -> pathlib.Path:
+    """Path to a verified copy of the El Centro record ``IELC180.AT2``.
+
+    Parameters
+    ----------
+    local : str or os.PathLike, optional
+        The file ``IELC180.AT2`` or a directory containing it. When omitted, the
+        environment variable ``ROCKJAX_EL_CENTRO`` is used in the same way, then the
+        cache file ``cache_dir() / "IELC180.AT2"``.
+    download : bool, default True
+        Download the record into the cache (about 61 kB, timeout 30 s) if it is not found
+        locally. With ``False`` a missing record raises FileNotFoundError.
+
+    Returns
+    -------
+    pathlib.Path
+        Path of the record; its SHA-256 equals :data:`EL_CENTRO_SHA256`.
+
+    Raises
+    ------
+    FileNotFoundError
+        If `local` (or ``ROCKJAX_EL_CENTRO``) names a missing file, or if the record is
+        not cached and ``download=False``.
+    RuntimeError
+        If the download fails.
+    ValueError
+        If the file used (local, cached or downloaded) does not have the expected SHA-256.
+    """
+    if local is not None:
+        return _resolve_local(local, "the local= argument")
+    env = os.environ.get(_ENV_LOCAL)
+    if env:
+        return _resolve_local(env, f"the environment variable {_ENV_LOCAL}")
+
+    cached = cache_dir() / EL_CENTRO_FILENAME
+    if cached.is_file():
+        _verify(cached, hint=" Delete the cached file to download it again.")
+        return cached
+    if not download:
+        raise FileNotFoundError(
+            f"El Centro record not found in the cache ({cached}) and download=False. "
+            f"Call with download=True to fetch it, or: {_HOW_TO_POINT}"
+        )
+
+    cached.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{EL_CENTRO_FILENAME}.", dir=cached.parent)
+    os.close(fd)
+    tmp = pathlib.Path(tmp_name)
+    try:
+        try:
+            _download(EL_CENTRO_URL, tmp)
+        except Exception as exc:
+            raise RuntimeError(
+                f"Could not download the El Centro record from {EL_CENTRO_URL}: {exc}. "
+                f"{_HOW_TO_POINT}"
+            ) from exc
+        _verify(tmp, hint=f" (downloaded from {EL_CENTRO_URL}; the file was deleted)")
+        os.replace(tmp, cached)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return cached
+
+
+def el_centro(*, local: str | os.PathLike[str] | None = None, download: bool = True) -> Record:
+    """The 1940 El Centro NS record (Imperial Valley, El Centro Array #9, 180).
+
+    Parameters
+    ----------
+    local : str or os.PathLike, optional
+        The file ``IELC180.AT2`` or a directory containing it; see :func:`el_centro_path`.
+    download : bool, default True
+        Download the record into the cache if it is not available locally.
+
+    Returns
+    -------
+    Record
+        4000 samples at dt = 0.01 s (40 s), accelerations in m/s² converted from g
+        (PGA 3.068 m/s² = 0.3129 g).
+    """
+    return read_record(el_centro_path(local=local, download=download), format="at2")

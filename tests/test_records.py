@@ -1,0 +1,426 @@
+"""Tests for the ground-motion record readers and the El Centro dataset helper.
+
+The real records are read-only files outside the repository (see PROVENANCE.md next to
+them); nothing here touches the network, and malformed inputs are written to tmp_path.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rockjax import datasets
+from rockjax._records import G_STANDARD, read_record, Record
+
+SHARED = Path(
+    os.environ.get("ROCKJAX_SHARED_DATA")
+    or Path(__file__).resolve().parents[2] / "shared" / "data" / "ground_motions"
+)
+
+# file -> (read_record kwargs, dt [s], npts, PGA [m/s^2], units_in_file), from PROVENANCE.md
+EXPECTED = {
+    "IELC180.AT2": ({}, 0.01, 4000, 0.3129 * G_STANDARD, "g"),
+    "elCentro.AT2": ({}, 0.02, 1559, 0.3188 * G_STANDARD, "g"),
+    "elcentro_NS_full.dat": ({"units": "g"}, 0.02, 2688, 0.3487 * G_STANDARD, "g"),
+    "RSN1106_KOBE_KJM000.AT2": ({}, 0.02, 7500, 0.8342 * G_STANDARD, "g"),
+    "Northridge_Sylmar_County.dat": ({"units": "m/s2"}, 0.02, 3000, 8.2676, "m/s2"),
+    "RSN753_LOMAP_CLS000.AT2": ({}, 0.005, 7995, 0.6447 * G_STANDARD, "g"),
+    "ChiChi.dat": ({}, 0.01, 5279, 0.3610 * G_STANDARD, "g"),
+}
+
+
+def shared_file(name: str) -> Path:
+    path = SHARED / name
+    if not path.is_file():
+        pytest.skip(
+            f"shared ground-motion record {path} not available "
+            "(set ROCKJAX_SHARED_DATA to the ground_motions folder)"
+        )
+    return path
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+AT2_HEADER = (
+    "PEER STRONG MOTION DATABASE RECORD. PROCESSING BY PACIFIC ENGINEERING.\n"
+    "SYNTHETIC TEST RECORD\n"
+    "ACCELERATION TIME HISTORY IN UNITS OF G.\n"
+)
+
+
+# --- real records -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_shared_records_match_provenance(name):
+    kwargs, dt, npts, pga, units = EXPECTED[name]
+    rec = read_record(shared_file(name), **kwargs)
+    assert isinstance(rec, Record)
+    assert rec.dt == pytest.approx(dt, rel=1e-9)
+    assert rec.npts == npts == rec.accel.shape[0]
+    assert rec.accel.dtype == np.float64 and rec.accel.ndim == 1
+    assert np.all(np.isfinite(rec.accel))
+    # PROVENANCE.md gives 4 significant digits, so 2e-4 relative is the honest tolerance.
+    assert rec.pga == pytest.approx(pga, rel=2e-4)
+    assert float(np.max(np.abs(rec.accel))) == pytest.approx(pga, rel=2e-4)
+    assert rec.units_in_file == units
+    assert rec.source == str(shared_file(name))
+
+
+def test_ielc180_exact_values():
+    rec = read_record(shared_file("IELC180.AT2"))
+    assert rec.accel[0] == pytest.approx(-0.6403182e-02 * G_STANDARD, rel=1e-12)
+    assert rec.accel[-1] == pytest.approx(0.9459335e-04 * G_STANDARD, rel=1e-12)
+    assert rec.pga == pytest.approx(3.068, rel=1e-3)
+    peak = int(np.argmax(np.abs(rec.accel)))
+    assert rec.time[peak] == pytest.approx(2.15)
+    assert rec.accel[peak] < 0
+    assert "EL CENTRO ARRAY #9" in rec.description
+    assert "NPTS=  4000" in rec.description
+
+
+def test_header_units_override_and_format_args():
+    path = shared_file("IELC180.AT2")
+    in_g = read_record(path)
+    as_si = read_record(path, units="m/s2", format="at2")
+    assert as_si.units_in_file == "m/s2"
+    np.testing.assert_allclose(in_g.accel, as_si.accel * G_STANDARD, rtol=1e-15)
+    # ChiChi.dat states Accel[g] in its text header; explicit units override it.
+    chichi = read_record(shared_file("ChiChi.dat"), format="two_column")
+    assert chichi.units_in_file == "g"
+    assert "TCU045" in chichi.description
+    assert read_record(shared_file("ChiChi.dat"), units="m/s^2").pga == pytest.approx(0.361)
+
+
+def test_headerless_two_column_requires_units():
+    with pytest.raises(ValueError, match=r"units='g' or units='m/s2'") as info:
+        read_record(shared_file("Northridge_Sylmar_County.dat"))
+    assert "Northridge_Sylmar_County.dat" in str(info.value)
+
+
+def test_record_is_frozen_and_read_only():
+    rec = read_record(shared_file("elCentro.AT2"))
+    with pytest.raises(ValueError):
+        rec.accel[0] = 1.0
+    with pytest.raises(AttributeError):
+        rec.dt = 0.5  # type: ignore[misc]
+
+
+# --- synthetic well-formed files ---------------------------------------------------------
+
+
+def test_at2_nga_header_eight_per_line_and_trailing_blank(tmp_path):
+    values = np.arange(1, 12) * 1e-3
+    body = " ".join(f"{v:.7E}" for v in values[:8]) + "\n"
+    body += " ".join(f"{v:.7E}" for v in values[8:]) + "\n   \n"
+    path = write(
+        tmp_path,
+        "rec.txt",
+        "PEER NGA STRONG MOTION DATABASE RECORD\nSynthetic\n"
+        "ACCELERATION TIME SERIES IN UNITS OF G\nNPTS =     11 , DT =   .020 SEC ,\n" + body,
+    )
+    rec = read_record(path)  # detected from the NPTS line, not the suffix
+    assert rec.dt == 0.02 and rec.npts == 11 and rec.units_in_file == "g"
+    np.testing.assert_allclose(rec.accel, values * G_STANDARD, rtol=1e-12)
+
+
+def test_at2_old_nga_header_and_fortran_exponent(tmp_path):
+    path = write(
+        tmp_path,
+        "old.at2",
+        AT2_HEADER + "    3    0.0050    NPTS, DT\n 0.1D+00 -0.2D+00 0.3\n",
+    )
+    rec = read_record(path)
+    assert rec.dt == 0.005
+    np.testing.assert_allclose(rec.accel, np.array([0.1, -0.2, 0.3]) * G_STANDARD)
+
+
+def test_two_column_tab_header_and_shift(tmp_path):
+    rows = "\n".join(f"{1.5 + 0.01 * i:.3f}\t{0.1 * i:.3f}" for i in range(6))
+    path = write(tmp_path, "a.dat", "Some title\nTime[s] Accel[m/s2]\n" + rows + "\n")
+    rec = read_record(path)
+    assert rec.units_in_file == "m/s2"
+    assert rec.dt == pytest.approx(0.01, rel=1e-12)
+    assert rec.time[0] == 0.0
+    np.testing.assert_allclose(rec.accel, 0.1 * np.arange(6), atol=1e-12)
+    assert rec.description == "Some title\nTime[s] Accel[m/s2]"
+
+
+def test_one_column_with_dt(tmp_path):
+    path = write(tmp_path, "one.txt", "0.0\n0.5\n-0.25\n")
+    rec = read_record(path, dt=0.01, units="g")
+    assert rec.dt == 0.01 and rec.npts == 3
+    np.testing.assert_allclose(rec.accel, [0.0, 0.5 * G_STANDARD, -0.25 * G_STANDARD])
+    assert read_record(path, dt=0.01, units="mps2", format="one_column").accel[1] == 0.5
+
+
+# --- malformed inputs ---------------------------------------------------------------------
+
+
+def test_missing_file(tmp_path):
+    missing = tmp_path / "nope.AT2"
+    with pytest.raises(FileNotFoundError, match="nope.AT2"):
+        read_record(missing)
+
+
+@pytest.mark.parametrize("name", ["empty.dat", "empty.AT2"])
+def test_empty_file(tmp_path, name):
+    path = write(tmp_path, name, "")
+    with pytest.raises(ValueError, match=rf"{name}.*empty"):
+        read_record(path, units="g")
+    blank = write(tmp_path, "blank_" + name, "\n  \n\t\n")
+    with pytest.raises(ValueError, match="empty"):
+        read_record(blank, units="g")
+
+
+def test_header_only_two_column(tmp_path):
+    path = write(tmp_path, "hdr.dat", "Title\nTime[s] Accel[g]\n")
+    with pytest.raises(ValueError, match=r"hdr\.dat.*no numeric data"):
+        read_record(path)
+
+
+@pytest.mark.parametrize("bad", ["nan", "NaN", "inf", "-Infinity"])
+def test_non_finite_two_column(tmp_path, bad):
+    path = write(tmp_path, "nf.dat", f"0.00 0.1\n0.01 0.2\n0.02 {bad}\n0.03 0.4\n")
+    with pytest.raises(ValueError, match=r"nf\.dat, line 3: non-finite value \(NaN or inf\)"):
+        read_record(path, units="g")
+
+
+def test_non_finite_at2(tmp_path):
+    path = write(tmp_path, "nf.AT2", AT2_HEADER + "NPTS=  4, DT= .01 SEC\n0.1 0.2\nInf 0.4\n")
+    with pytest.raises(ValueError, match=r"nf\.AT2, line 6: non-finite"):
+        read_record(path)
+
+
+def test_non_uniform_time(tmp_path):
+    path = write(tmp_path, "nu.dat", "0.00 0.1\n0.01 0.2\n0.02 0.3\n0.035 0.4\n0.045 0.5\n")
+    with pytest.raises(ValueError, match=r"nu\.dat, line 4: non-uniform time step"):
+        read_record(path, units="g")
+
+
+@pytest.mark.parametrize(
+    "rows, line", [("0.00 0.1\n0.01 0.2\n0.01 0.3\n", 3), ("0.00 0.1\n0.01 0.2\n0.00 0.3\n", 3)]
+)
+def test_non_increasing_time(tmp_path, rows, line):
+    path = write(tmp_path, "ni.dat", rows)
+    with pytest.raises(ValueError, match=rf"ni\.dat, line {line}: time is not strictly increasing"):
+        read_record(path, units="g")
+
+
+@pytest.mark.parametrize("npts, nvalues", [(5, 4), (3, 4)])
+def test_npts_mismatch(tmp_path, npts, nvalues):
+    body = " ".join(["0.1"] * nvalues) + "\n"
+    path = write(tmp_path, "mm.AT2", AT2_HEADER + f"NPTS=  {npts}, DT= .01000 SEC\n" + body)
+    with pytest.raises(ValueError, match=rf"mm\.AT2.*NPTS={npts} but {nvalues} values"):
+        read_record(path)
+
+
+def test_at2_bad_npts_line(tmp_path):
+    path = write(tmp_path, "bad.AT2", AT2_HEADER + "no npts here\n0.1 0.2\n")
+    with pytest.raises(ValueError, match=r"bad\.AT2, line 4: expected the PEER AT2 header"):
+        read_record(path)
+
+
+@pytest.mark.parametrize("units", ["cm/s2", "gal", "ft/s2", ""])
+def test_unknown_units(tmp_path, units):
+    path = write(tmp_path, "u.dat", "0.0 0.1\n0.01 0.2\n")
+    with pytest.raises(ValueError, match=r"unknown units="):
+        read_record(path, units=units)
+
+
+def test_unsupported_header_units(tmp_path):
+    path = write(
+        tmp_path,
+        "vel.AT2",
+        "PEER NGA\nX\nVELOCITY TIME SERIES IN UNITS OF CM/SEC\nNPTS= 2, DT= .01 SEC\n1 2\n",
+    )
+    with pytest.raises(ValueError, match=r"vel\.AT2: the header states units 'CM/SEC'"):
+        read_record(path)
+
+
+def test_one_column_without_dt(tmp_path):
+    path = write(tmp_path, "one.txt", "0.1\n0.2\n0.3\n")
+    with pytest.raises(ValueError, match=r"one\.txt.*pass dt="):
+        read_record(path, units="g")
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.01, float("nan")])
+def test_bad_dt_argument(tmp_path, dt):
+    path = write(tmp_path, "one.txt", "0.1\n0.2\n0.3\n")
+    with pytest.raises(ValueError, match=r"dt must be finite and > 0"):
+        read_record(path, units="g", dt=dt)
+
+
+def test_zero_dt_in_at2_header(tmp_path):
+    path = write(tmp_path, "z.AT2", AT2_HEADER + "NPTS=  2, DT= 0.0 SEC\n0.1 0.2\n")
+    with pytest.raises(ValueError, match=r"z\.AT2, line 4: DT must be > 0"):
+        read_record(path)
+
+
+def test_dt_argument_conflicts_with_file(tmp_path):
+    path = write(tmp_path, "c.dat", "0.0 0.1\n0.01 0.2\n0.02 0.3\n")
+    assert read_record(path, units="g", dt=0.01).dt == pytest.approx(0.01)
+    with pytest.raises(ValueError, match=r"c\.dat: dt=0\.02 was passed"):
+        read_record(path, units="g", dt=0.02)
+
+
+@pytest.mark.parametrize(
+    "text, line",
+    [
+        ("0.00 0.1\n0.01 0.2\n0.02 abc\n0.03 0.4\n", 3),
+        ("0.00 0.1\n0.01 0.2\n\n<html> oops </html>\n", 4),
+        ("Time Accel[g]\n0.00 0.1\n0.01 1.0.2\n", 3),
+    ],
+)
+def test_garbage_in_data(tmp_path, text, line):
+    path = write(tmp_path, "garbage.dat", text)
+    with pytest.raises(ValueError, match=rf"garbage\.dat, line {line}: non-numeric data"):
+        read_record(path, units="g")
+
+
+def test_garbage_in_at2(tmp_path):
+    path = write(tmp_path, "g.AT2", AT2_HEADER + "NPTS=  4, DT= .01 SEC\n0.1 0.2\n0.3 x4\n")
+    with pytest.raises(ValueError, match=r"g\.AT2, line 6: non-numeric data"):
+        read_record(path)
+
+
+def test_wrong_column_count(tmp_path):
+    path = write(tmp_path, "cols.dat", "0.00 0.1\n0.01 0.2 0.5\n")
+    with pytest.raises(ValueError, match=r"cols\.dat, line 2: expected 2 columns"):
+        read_record(path, units="g")
+    many = write(tmp_path, "many.dat", "0.1 0.2 0.3\n")
+    with pytest.raises(ValueError, match=r"many\.dat, line 1: cannot detect the file format"):
+        read_record(many, units="g")
+
+
+def test_too_few_samples(tmp_path):
+    two_col = write(tmp_path, "short.dat", "0.0 0.1\n")
+    with pytest.raises(ValueError, match=r"short\.dat: a record needs at least 2 samples"):
+        read_record(two_col, units="g")
+    at2 = write(tmp_path, "short.AT2", AT2_HEADER + "NPTS=  1, DT= .01 SEC\n0.1\n")
+    with pytest.raises(ValueError, match=r"short\.AT2: a record needs at least 2 samples"):
+        read_record(at2)
+
+
+def test_unknown_format(tmp_path):
+    path = write(tmp_path, "f.dat", "0.0 0.1\n0.01 0.2\n")
+    with pytest.raises(ValueError, match=r"unknown format="):
+        read_record(path, units="g", format="csv")
+
+
+# --- datasets ----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def isolated_cache(tmp_path, monkeypatch):
+    """Empty cache under tmp_path, no ROCKJAX_EL_CENTRO, and a download that must not run."""
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("ROCKJAX_CACHE", str(cache))
+    monkeypatch.delenv("ROCKJAX_EL_CENTRO", raising=False)
+
+    def no_network(url, dest):
+        raise AssertionError("tests must not download")
+
+    monkeypatch.setattr(datasets, "_download", no_network)
+    return cache
+
+
+def test_cache_dir_resolution(monkeypatch, tmp_path):
+    monkeypatch.setenv("ROCKJAX_CACHE", str(tmp_path / "c"))
+    assert datasets.cache_dir() == tmp_path / "c"
+    monkeypatch.delenv("ROCKJAX_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert datasets.cache_dir() == tmp_path / "xdg" / "rockjax"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert datasets.cache_dir() == tmp_path / "home" / ".cache" / "rockjax"
+
+
+def test_download_into_cache(isolated_cache, monkeypatch):
+    source = shared_file("IELC180.AT2")
+    calls = []
+
+    def fake_download(url, dest):
+        calls.append(url)
+        assert Path(dest).parent == isolated_cache  # temp file next to the target
+        shutil.copyfile(source, dest)
+
+    monkeypatch.setattr(datasets, "_download", fake_download)
+    rec = datasets.el_centro()
+    assert calls == [datasets.EL_CENTRO_URL]
+    assert rec.dt == 0.01 and rec.npts == 4000 and rec.units_in_file == "g"
+    assert rec.pga == pytest.approx(0.3129 * G_STANDARD, rel=2e-4)
+    cached = isolated_cache / "IELC180.AT2"
+    assert rec.source == str(cached)
+    assert sorted(p.name for p in isolated_cache.iterdir()) == ["IELC180.AT2"]
+    # A second call uses the cache, even with download=False.
+    assert datasets.el_centro_path(download=False) == cached
+    assert len(calls) == 1
+
+
+def test_local_argument_and_env_var(isolated_cache, monkeypatch):
+    source = shared_file("IELC180.AT2")
+    assert datasets.el_centro_path(local=source) == source
+    assert datasets.el_centro_path(local=source.parent) == source  # a directory works too
+    assert datasets.el_centro(local=str(source)).npts == 4000
+    monkeypatch.setenv("ROCKJAX_EL_CENTRO", str(source.parent))
+    assert datasets.el_centro_path(download=False) == source
+    assert not isolated_cache.exists()
+
+
+def test_local_missing(isolated_cache, tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"not found.*ROCKJAX_EL_CENTRO"):
+        datasets.el_centro_path(local=tmp_path / "nowhere.AT2")
+
+
+def test_sha_mismatch_local(isolated_cache, tmp_path):
+    modified = tmp_path / "IELC180.AT2"
+    data = bytearray(shared_file("IELC180.AT2").read_bytes())
+    data[-3] = ord("9") if data[-3] != ord("9") else ord("8")
+    modified.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="SHA-256 mismatch") as info:
+        datasets.el_centro(local=tmp_path)
+    message = str(info.value)
+    assert str(modified) in message and datasets.EL_CENTRO_SHA256 in message
+    assert datasets._sha256(modified) in message
+
+
+def test_sha_mismatch_cached(isolated_cache):
+    isolated_cache.mkdir()
+    (isolated_cache / "IELC180.AT2").write_text("not the record\n")
+    with pytest.raises(ValueError, match=r"SHA-256 mismatch.*Delete the cached file"):
+        datasets.el_centro_path(download=False)
+
+
+def test_sha_mismatch_download_removes_temp(isolated_cache, monkeypatch):
+    def corrupt_download(url, dest):
+        Path(dest).write_text("<html>rate limited</html>\n")
+
+    monkeypatch.setattr(datasets, "_download", corrupt_download)
+    with pytest.raises(ValueError, match="SHA-256 mismatch"):
+        datasets.el_centro_path()
+    assert list(isolated_cache.iterdir()) == []
+
+
+def test_download_failure(isolated_cache, monkeypatch):
+    def failing_download(url, dest):
+        raise OSError("network unreachable")
+
+    monkeypatch.setattr(datasets, "_download", failing_download)
+    with pytest.raises(RuntimeError, match=r"network unreachable.*local=.*ROCKJAX_EL_CENTRO"):
+        datasets.el_centro_path()
+    assert list(isolated_cache.iterdir()) == []
+
+
+def test_no_download_empty_cache(isolated_cache):
+    with pytest.raises(FileNotFoundError, match=r"download=False.*local=.*ROCKJAX_EL_CENTRO"):
+        datasets.el_centro(download=False)
+    assert not isolated_cache.exists()

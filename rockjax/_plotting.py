@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def _pyplot():
-    import matplotlib
+def new_figure(**kwargs):
+    """A matplotlib Figure that needs no pyplot state or backend switch.
 
-    if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    It saves with `fig.savefig(...)` from scripts and the CLI, and shows inline in notebooks.
+    """
+    from matplotlib.figure import Figure
 
-    return plt
+    return Figure(**kwargs)
 
 
 def pushover_curves(structure, umax=None, n=401):
@@ -41,12 +41,12 @@ def pushover_curves(structure, umax=None, n=401):
 def plot_pushover(structure, curves=None, *, ax=None, title=None):
     """Fig. 6/8-style plot: simplified, exact and numerical k(u), with u_crit, P_crit and
     u_overturn marked. Returns the matplotlib Figure."""
-    plt = _pyplot()
     s = structure
     if curves is None:
         curves = pushover_curves(s)
     if ax is None:
-        fig, ax = plt.subplots(figsize=(7, 4.5))
+        fig = new_figure(figsize=(7, 4.5))
+        ax = fig.add_subplot()
     else:
         fig = ax.figure
     u_mm = 1e3 * curves["u"]

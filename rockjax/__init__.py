@@ -12,6 +12,12 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
+from . import datasets as datasets  # noqa: E402
+from ._excitation import (  # noqa: E402
+    AbstractExcitation as AbstractExcitation,
+    FreeVibration as FreeVibration,
+    GroundMotion as GroundMotion,
+)
 from ._kinematics import (  # noqa: E402
     theta_from_u as theta_from_u,
     u_from_theta as u_from_theta,
@@ -23,6 +29,8 @@ from ._pushover import (  # noqa: E402
     pushover as pushover,
     PushoverResult as PushoverResult,
 )
+from ._records import read_record as read_record, Record as Record  # noqa: E402
+from ._response import Response as Response, STATUS as STATUS  # noqa: E402
 from ._restoring import (  # noqa: E402
     AbstractRestoringForce as AbstractRestoringForce,
     Exact as Exact,
@@ -33,6 +41,7 @@ from ._restoring import (  # noqa: E402
     Simplified as Simplified,
     Smooth as Smooth,
 )
+from ._simulate import simulate as simulate  # noqa: E402
 from ._structure import (  # noqa: E402
     DERIVED as DERIVED,
     mcmanus_column as mcmanus_column,

@@ -39,6 +39,20 @@ class AbstractRestoringForce(eqx.Module):
         """True for a rigid interface (no pre-uplift phase)."""
         return False
 
+    @property
+    def jumps_at_lift_off(self) -> bool:
+        """True if k(u) is discontinuous at |u| = u_crit (the P_crit / P_crit2 gap).
+
+        The simulator then stops and restarts the integration at lift-off and evaluates
+        one smooth branch per segment (`branches`), so that no step straddles the jump and
+        gradients include the crossing.
+        """
+        return False
+
+    def branches(self, structure, u):
+        """(before lift-off, after lift-off) forces [N], each extended smoothly past u_crit."""
+        raise NotImplementedError
+
 
 class Simplified(AbstractRestoringForce):
     r"""The paper's piecewise-linear $k(u)$: Eq. 13 before lift-off, Eq. 20 after.
@@ -51,12 +65,18 @@ class Simplified(AbstractRestoringForce):
     Past $u_{overturn}$ the force is negative: the structure overturns.
     """
 
-    def __call__(self, structure, u):
-        s = structure
+    @property
+    def jumps_at_lift_off(self) -> bool:
+        return True
+
+    def branches(self, structure, u):
         u = jnp.asarray(u)
-        a = jnp.abs(u)
-        post = jnp.sign(u) * _simplified_post(s, a)
-        return jnp.where(a <= s.u_crit, s.K1 * u, post)
+        return structure.K1 * u, jnp.sign(u) * _simplified_post(structure, jnp.abs(u))
+
+    def __call__(self, structure, u):
+        u = jnp.asarray(u)
+        pre, post = self.branches(structure, u)
+        return jnp.where(jnp.abs(u) <= structure.u_crit, pre, post)
 
 
 class Exact(AbstractRestoringForce):
@@ -67,13 +87,24 @@ class Exact(AbstractRestoringForce):
     (`rockjax.theta_from_u`). Use it for large rotations and near overturning.
     """
 
-    def __call__(self, structure, u):
+    @property
+    def jumps_at_lift_off(self) -> bool:
+        return True
+
+    def branches(self, structure, u):
         s = structure
         u = jnp.asarray(u)
         a = jnp.abs(u)
-        theta = theta_from_u(s, jnp.maximum(a, s.u_crit))
-        post = jnp.sign(u) * _rocking_force(s, theta)
-        return jnp.where(a <= s.u_crit, s.K1 * u, post)
+        # the after-lift-off mapping theta(u), continued below u_crit
+        tu = jnp.arcsin(jnp.clip(s.delta_0 / s.B, -1.0, 1.0))
+        arg = jnp.sin(s.alpha_e - tu) + (s.u_crit - a) / s.R_e
+        theta = s.alpha_e - jnp.arcsin(jnp.clip(arg, -1.0, 1.0))
+        return s.K1 * u, jnp.sign(u) * _rocking_force(s, theta)
+
+    def __call__(self, structure, u):
+        u = jnp.asarray(u)
+        pre, post = self.branches(structure, u)
+        return jnp.where(jnp.abs(u) <= structure.u_crit, pre, post)
 
 
 def _smootherstep(t):

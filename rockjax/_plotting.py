@@ -82,3 +82,56 @@ def plot_pushover(structure, curves=None, *, ax=None, title=None):
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def plot_response(structure, response, *, ground_motion=None, title=None, label=None,
+                  overlay=()):
+    """Fig 9/10-style time histories: displacement (impacts marked, ±u_crit and ±u_overturn
+    dashed) and uplift, with the ground acceleration on top when given.
+
+    `overlay` is a sequence of `(label, Response)` drawn over the main one. Returns the Figure.
+    """
+    s = structure
+    res = response
+    panels = 3 if ground_motion is not None else 2
+    fig = new_figure(figsize=(9, 2.4 * panels + 0.6))
+    axes = fig.subplots(panels, 1, sharex=True)
+    ts = np.asarray(res.ts)
+    k = 0
+    if ground_motion is not None:
+        ag = np.asarray(ground_motion.ground_acceleration(res.ts))
+        axes[0].plot(ts, ag / 9.81, color="0.3", lw=0.8)
+        axes[0].set_ylabel("ground accel. [g]")
+        k = 1
+        axes[0].grid(alpha=0.3)
+    ax_u, ax_up = axes[k], axes[k + 1]
+    ax_u.plot(ts, 1e3 * np.asarray(res.u), color="C0", lw=1.2, label=label)
+    ax_up.plot(ts, 1e3 * np.asarray(res.uplift), color="C0", lw=1.2, label=label)
+    for i, (lab, other) in enumerate(overlay):
+        ax_u.plot(np.asarray(other.ts), 1e3 * np.asarray(other.u), lw=1.0, ls="--",
+                  color=f"C{i + 1}", label=lab)
+        ax_up.plot(np.asarray(other.ts), 1e3 * np.asarray(other.uplift), lw=1.0, ls="--",
+                   color=f"C{i + 1}", label=lab)
+    uc = 1e3 * float(s.u_crit)
+    for y in (uc, -uc):
+        ax_u.axhline(y, color="k", lw=0.5, ls=":")
+    imp = np.asarray(res.impact_times)[: int(res.n_impacts)]
+    if imp.size and imp.size <= 60:
+        ax_u.plot(imp, np.zeros_like(imp), "k|", ms=8, label="impacts")
+    ax_u.axhline(0.0, color="k", lw=0.5)
+    ax_u.set_ylabel("displacement u [mm]")
+    ax_up.set_ylabel("uplift [mm]")
+    ax_up.set_xlabel("time [s]")
+    for ax in (ax_u, ax_up):
+        ax.grid(alpha=0.3)
+    if label or overlay:
+        ax_u.legend(fontsize=8, loc="upper right")
+    status = STATUS_TEXT.get(int(res.status), "?")
+    summary = (f"peak |u| = {1e3 * float(res.peak_u):.1f} mm, peak uplift = "
+               f"{1e3 * float(res.peak_uplift):.1f} mm, {int(res.n_impacts)} impacts, {status}")
+    axes[0].set_title((title + "\n" if title else "") + summary, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+STATUS_TEXT = {0: "completed", 1: "OVERTURNED", 2: "max impacts reached", 3: "solver failure"}

@@ -201,3 +201,43 @@ def el_centro(*, local: str | os.PathLike[str] | None = None, download: bool = T
         (PGA 3.068 m/s² = 0.3129 g).
     """
     return read_record(el_centro_path(local=local, download=download), format="at2")
+
+
+def synthetic_ground_motion(
+    *, duration: float = 40.0, dt: float = 0.01, pga: float = 3.0, seed: int = 0
+) -> Record:
+    """A **synthetic** ground acceleration [m/s²]: not a real record.
+
+    Gaussian white noise (fixed `seed`) filtered by a Kanai-Tajimi ground filter
+    (f_g = 2.5 Hz, ζ_g = 0.6), shaped by a build-up / strong-motion / decay envelope and
+    scaled to the peak ground acceleration `pga` [m/s²]. Used by the demo and the notebooks
+    when the El Centro record is neither cached nor downloadable; always labelled synthetic.
+    """
+    import numpy as np
+
+    if not (duration > 0 and dt > 0 and pga > 0):
+        raise ValueError("duration, dt and pga must be positive")
+    rng = np.random.default_rng(seed)
+    n = int(round(duration / dt)) + 1
+    t = np.arange(n) * dt
+    w = rng.standard_normal(n) / np.sqrt(dt)
+    wg, zg = 2 * np.pi * 2.5, 0.6
+    # Kanai-Tajimi filter, semi-implicit Euler on x'' + 2 z w x' + w^2 x = -w(t)
+    x = v = 0.0
+    out = np.empty(n)
+    for i in range(n):
+        acc = -w[i] - 2 * zg * wg * v - wg**2 * x
+        v += dt * acc
+        x += dt * v
+        out[i] = -(2 * zg * wg * v + wg**2 * x)
+    t1, t2 = 0.1 * duration, 0.4 * duration
+    env = np.where(t < t1, (t / t1) ** 2, np.where(t < t2, 1.0, np.exp(-3.0 * (t - t2) / duration)))
+    a = out * env
+    a *= pga / np.max(np.abs(a))
+    return Record(
+        dt=dt,
+        accel=a,
+        source=f"synthetic (seed {seed})",
+        description="SYNTHETIC ground motion: filtered white noise, not a recorded earthquake",
+        units_in_file="m/s2",
+    )

@@ -58,10 +58,59 @@ def test_pushover_table_plot_and_csv(tmp_path, capsys):
     assert lines[0] == "u,simplified,exact,numerical,theta,uplift" and len(lines) == 202
 
 
-def test_demo_writes_plot(tmp_path, capsys):
+def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
+    monkeypatch.setenv("ROCKJAX_EL_CENTRO", str(ground_motions_dir / "IELC180.AT2"))
+    monkeypatch.setenv("ROCKJAX_CACHE", str(tmp_path / "cache"))
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
-    assert (tmp_path / "demo" / "pushover.png").stat().st_size > 10_000
-    assert "P_crit" in capsys.readouterr().out
+    for name in ("pushover.png", "free_vibration.png", "earthquake.png"):
+        assert (tmp_path / "demo" / name).stat().st_size > 10_000
+    out = capsys.readouterr().out
+    assert "P_crit" in out and "El Centro" in out and "SYNTHETIC" not in out
+    row = next(ln for ln in out.splitlines() if ln.startswith("1940 El Centro NS"))
+    assert row.split()[-2] == "243" and row.split()[-1] == "completed"
+
+
+def test_demo_falls_back_to_synthetic(tmp_path, capsys, monkeypatch):
+    from rockjax import datasets
+
+    def offline(url, dest):
+        raise OSError("network unreachable")
+
+    monkeypatch.delenv("ROCKJAX_EL_CENTRO", raising=False)
+    monkeypatch.setenv("ROCKJAX_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(datasets, "_download", offline)
+    assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
+    out = capsys.readouterr().out
+    assert "SYNTHETIC" in out and (tmp_path / "demo" / "earthquake.png").exists()
+
+
+def test_simulate_free_vibration_json(capsys):
+    assert main(["simulate", "--u0", "0.1", "--t1", "4", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"peak_u", "peak_uplift", "n_impacts", "impact_times", "status",
+                        "t_overturn"}
+    assert out["status"] == "completed" and out["t_overturn"] is None
+    assert out["peak_u"] == pytest.approx(0.1) and out["n_impacts"] == len(out["impact_times"])
+    assert out["n_impacts"] == 17
+
+
+def test_simulate_record_csv_plot(tmp_path, capsys, ground_motions_dir):
+    rec = ground_motions_dir / "IELC180.AT2"
+    csv, png = tmp_path / "r.csv", tmp_path / "r.png"
+    args = ["simulate", "--record", str(rec), "--units", "g", "--scale", "0.5", "--t1", "10",
+            "--model", "exact", "--out", str(csv), "--plot", str(png)]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "status        completed" in text
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "t,u,v,theta,uplift" and len(lines) == 1002  # 0.01 s grid, 10 s
+    assert png.stat().st_size > 10_000
+
+
+def test_simulate_overturns_json(capsys):
+    assert main(["simulate", "--u0", "0.5", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["status"] == "overturned" and out["t_overturn"] == 0.0
 
 
 SOFT = "[structure]\nm_e=1.0\nm_b=1.0\nH_e=1.0\nH_b=0.1\nB=0.3\nI_eg=0.0\nI_bg=0.0\nk_f=10.0\n"
@@ -81,6 +130,18 @@ NEG = SOFT.replace("m_e=1.0", "m_e=-1.0").replace("k_f=10.0", "k_f=1e6")
         (["pushover", "--plot", "x.txt"], {}, "--plot"),
         (["pushover", "--bogus"], {}, "unrecognized"),
         (["nosuchcommand"], {}, "invalid choice"),
+        (["simulate"], {}, "give --u0"),
+        (["simulate", "--u0", "0.1", "--record", "x.at2"], {}, "not both"),
+        (["simulate", "--u0", "0.1", "--r", "1.5"], {}, "--r"),
+        (["simulate", "--u0", "0.1", "--t1", "0"], {}, "--t1"),
+        (["simulate", "--u0", "0.1", "--model", "fancy"], {}, "--model"),
+        (["simulate", "--record", "missing.at2"], {}, "not found"),
+        (["simulate", "--record", "bad.at2"], {"bad.at2": "a\nb\nc\nNPTS= 3, DT= .01\n1 2\n"},
+         "NPTS"),
+        (["simulate", "--record", "nan.txt", "--units", "g"],
+         {"nan.txt": "0 0.1\n0.01 nan\n0.02 0.1\n"}, "NaN"),
+        (["simulate", "--record", "one.txt", "--units", "g"], {"one.txt": "0.1\n0.2\n0.3\n"},
+         "dt"),
     ],
 )
 def test_cli_errors_one_line_no_traceback(tmp_path, args, files, match):

@@ -16,7 +16,14 @@ def test_there_are_notebooks():
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
-def test_notebook_executes(path, tmp_path):
+def test_notebook_executes(path, tmp_path, monkeypatch):
+    # Kernels inherit the environment: the local El Centro copy (no download in tests).
+    from conftest import shared_ground_motions
+
+    record = shared_ground_motions() / "IELC180.AT2"
+    if record.is_file():
+        monkeypatch.setenv("ROCKJAX_EL_CENTRO", str(record))
+    monkeypatch.setenv("ROCKJAX_CACHE", str(tmp_path / "cache"))
     nb = nbformat.read(path, as_version=4)
     client = nbclient.NotebookClient(
         nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}

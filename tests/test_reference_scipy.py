@@ -332,3 +332,20 @@ def test_elcentro_matches_scipy(elcentro_runs):
     print(msg)
     assert n_jax == n_ref, msg
     assert peak_rel <= 1e-4, msg
+
+
+def test_elcentro_overturning_time_matches_scipy(column, ground_motions_dir):
+    # El Centro scaled by 2 overturns the Table 1 column (scale 1.5 does not).
+    import rockjax
+
+    path = _record_path(ground_motions_dir)
+    gm = rockjax.GroundMotion.from_file(path, units="g", scale=2.0)
+    res = rockjax.simulate(column, gm, 10.0)
+    dt, accel = read_at2(path)
+    ref = reference_simulate(_fields(column), 10.0, dt=dt, accel=accel, scale=2.0)
+    assert ref.status == "overturned" and res.status_name == "overturned"
+    assert np.all(np.isfinite(np.asarray(res.u))) and np.all(np.isfinite(np.asarray(res.v)))
+    assert float(res.t_overturn) == pytest.approx(ref.t_end, abs=1e-6), (
+        float(res.t_overturn), ref.t_end)
+    assert int(res.n_impacts) == ref.n_impacts
+    assert float(res.peak_u) == pytest.approx(float(column.u_overturn), rel=1e-12)

@@ -28,44 +28,6 @@ from ._restoring import get_model
 IMPACT_RULES = ("paper", "after_uplift")
 
 
-def _hermite_peak(t0, u0, v0, t1, u1, v1):
-    """Max |u| of the cubic Hermite interpolant of (u, v) on [t0, t1] (endpoints included)."""
-    h = t1 - t0
-    h = jnp.where(h > 0, h, 1.0)
-    # u(s) = a s^3 + b s^2 + c s + d on s in [0, 1]
-    d = u0
-    c = v0 * h
-    a = 2 * (u0 - u1) + h * (v0 + v1)
-    b = 3 * (u1 - u0) - h * (2 * v0 + v1)
-    # u'(s) = 3a s^2 + 2b s + c = 0
-    A, B, C = 3 * a, 2 * b, c
-    disc = B**2 - 4 * A * C
-    pos = disc > 0
-    sq = jnp.where(pos, jnp.sqrt(jnp.where(pos, disc, 1.0)), 0.0)  # NaN-free gradient at 0
-    safeA = jnp.where(jnp.abs(A) > 1e-300, A, 1.0)
-    r1 = jnp.where(jnp.abs(A) > 1e-300, (-B + sq) / (2 * safeA), -C / jnp.where(B != 0, B, 1.0))
-    r2 = jnp.where(jnp.abs(A) > 1e-300, (-B - sq) / (2 * safeA), r1)
-
-    def val(s):
-        ok = (s > 0) & (s < 1) & (disc >= 0)
-        s = jnp.where(ok, s, 0.0)
-        return jnp.where(ok, jnp.abs(((a * s + b) * s + c) * s + d), 0.0)
-
-    return jnp.maximum(jnp.maximum(jnp.abs(u0), jnp.abs(u1)), jnp.maximum(val(r1), val(r2)))
-
-
-def _segment_peak(step_ts, step_ys, t_start, y_start):
-    """Peak |u| of the continuous solution over one segment, from its accepted steps."""
-    u, v = step_ys
-    finite = jnp.isfinite(step_ts)
-    ts = jnp.concatenate([t_start[None], jnp.where(finite, step_ts, t_start)])
-    us = jnp.concatenate([y_start[0][None], jnp.where(finite, u, y_start[0])])
-    vs = jnp.concatenate([y_start[1][None], jnp.where(finite, v, y_start[1])])
-    peaks = _hermite_peak(ts[:-1], us[:-1], vs[:-1], ts[1:], us[1:], vs[1:])
-    # Unused step slots (diffrax pads them with inf) give no interval.
-    return jnp.maximum(jnp.abs(y_start[0]), jnp.max(jnp.where(finite, peaks, 0.0)))
-
-
 def _default_solver():
     return dfx.Tsit5()
 
@@ -83,52 +45,122 @@ class _Config(eqx.Module):
     dt: float | None = eqx.field(static=True, default=None)
 
 
+class _PIDController(dfx.PIDController):
+    """diffrax's PID controller, with no gradient through the proposed step *size*.
+
+    diffrax stops the gradient of the error factor but not of the previous step size, so a
+    step clipped to a record sample (whose end is fixed while its start moves with the
+    parameters) passes a derivative to every later step, multiplied by each step's growth
+    factor: over a 40 s record this explodes (1e100). Here step ends keep their gradient
+    (event times, record samples, output windows) and step sizes carry none, so the
+    gradient is that of the discrete solution with its steps frozen.
+    """
+
+    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order,
+                        controller_state):
+        keep, next_t0, next_t1, made_jump, state, result = super().adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+        )
+        next_t1 = next_t0 + jax.lax.stop_gradient(next_t1 - next_t0)
+        state = jax.lax.stop_gradient(state)
+        return keep, next_t0, next_t1, made_jump, state, result
+
+
+class _EventBisection(optx.Bisection):
+    """Bisection down to adjacent floating-point numbers, for event times.
+
+    Bracketed by the step that saw the sign change (diffrax passes lower/upper), it cannot
+    fail near a tangency as Newton can, and it locates the time to machine precision
+    (about 50 halvings of a step). The event time is still differentiated implicitly.
+    """
+
+    rtol: float = 4 * float(np.finfo(np.float64).eps)
+    atol: float = 1e-300
+
+    def terminate(self, fn, y, args, options, state, tags):
+        width = jnp.abs(state.upper - state.lower)
+        tiny = 4 * jnp.finfo(jnp.result_type(y)).eps * jnp.abs(y) + self.atol
+        return (width <= tiny) | (state.error == 0), optx.RESULTS.successful
+
+
+def _strong(tree):
+    """Strip weak types from the array leaves of a pytree (no copy for strong arrays)."""
+
+    def fix(x):
+        if isinstance(x, jax.Array) and getattr(x, "weak_type", False):
+            return jnp.asarray(x, dtype=x.dtype)
+        return x
+
+    return jax.tree_util.tree_map(fix, tree)
+
+
+_WINDOW = 64  # output times handled per segment: saving costs O(_WINDOW), not O(len(ts))
+
+
 @eqx.filter_jit
 def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
+    """The jitted core. The run is a sequence of segments; each segment is one diffrax
+    solve that ends at the first of these events (each located by Newton's method on the
+    dense solution, so its time is differentiable):
+
+    0. impact: u crosses 0 -> restart with v <- sqrt(r) v (Eq. 2);
+    1. overturning: |u| reaches u_overturn -> stop;
+    2. lift-off: |u| crosses u_crit (only for models whose k(u) jumps there) -> switch the
+       branch of k(u) integrated;
+    3. turning point: v crosses 0 -> record |u| (so peak_u is the peak of the continuous
+       solution: between turning points |u| is monotonic);
+    4. the end of a window of `_WINDOW` output times (the solve's own t1).
+    """
     s = structure
     model = cfg.model
     rigid = model.rigid
+    split = model.jumps_at_lift_off
     M = s.mass
     dtype = jnp.result_type(s.B)
     t1 = jnp.asarray(t1, dtype)
     ts = jnp.asarray(ts, dtype)
-    r = jnp.asarray(r, dtype)
-    sqrt_r = jnp.sqrt(r)
+    n = ts.shape[0]
+    sqrt_r = jnp.sqrt(jnp.asarray(r, dtype))
     u_ot = s.u_overturn
     u_crit = jnp.zeros_like(s.u_crit) if rigid else s.u_crit
 
-    split = model.jumps_at_lift_off
-
+    # ---- the equation of motion, Eq. 1 (args: sign, side, lift offset, vsign, v offset)
     def vector_field(t, y, args):
         u, v = y
         if split:
-            # one smooth branch per segment: args[1] = +1 before lift-off, -1 after
+            # one smooth branch per segment: side = +1 before lift-off, -1 after
             pre, post = model.branches(s, u)
             force = jnp.where(args[1] > 0, pre, post)
         else:
             force = model(s, u)
-        acc = -force / M - excitation.ground_acceleration(t)
-        return v, acc
+        return v, -force / M - excitation.ground_acceleration(t)
 
-    def impact_cond(t, y, args, **kwargs):
-        return args[0] * y[0]
+    # Each condition is positive during a segment and fires on a downcrossing. Conditions
+    # that start at a switching surface subtract their (~1e-12) start value, so that they
+    # start at exactly 0 and cannot fire again at once; the state is never snapped.
+    # args = (sign of u, branch side, lift offset, sign of v, turning offset)
+    def conditions(y, args):
+        """Each condition with its rate of change: (values, d/dt values)."""
+        u, v = y
+        a = args[5]  # acceleration at the evaluation point (rates only)
+        su = jnp.where(u >= 0, 1.0, -1.0)
+        vals = [args[0] * u, u_ot - jnp.abs(u), args[3] * v - args[4]]
+        rates = [args[0] * v, -su * v, args[3] * a]
+        if split:
+            vals.append(args[1] * (u_crit - jnp.abs(u)) - args[2])
+            rates.append(-args[1] * su * v)
+        return jnp.stack(vals), jnp.stack(rates)
 
-    def overturn_cond(t, y, args, **kwargs):
-        return u_ot - jnp.abs(y[0])
+    def event_cond(t, y, args, **kwargs):
+        # One scalar, positive during a segment; it crosses 0 at the earliest event in a
+        # step even when two events fall in the same step. The condition that restarted
+        # the segment starts at exactly 0 and grows; the tiny +1e-30 makes the start
+        # strictly positive, so that an event in the first step is not missed (diffrax
+        # fires on old > 0 >= new).
+        vals, _ = conditions(y, (*args, 0.0))
+        return jnp.min(vals) + 1e-30
 
-    def lift_cond(t, y, args, **kwargs):
-        # args[1] = +1 below u_crit (fires on the way up), -1 above (fires on the way down).
-        # args[2] is the value at a lift-off restart (~1e-12), subtracted so that the
-        # condition starts at exactly 0 and cannot fire again at once; the state itself
-        # is left continuous (no snapping, which would inject energy).
-        return args[1] * (u_crit - jnp.abs(y[0])) - args[2]
-
-    conds = (impact_cond, overturn_cond, lift_cond) if split else (impact_cond, overturn_cond)
-    event = dfx.Event(
-        conds,
-        root_finder=optx.Newton(rtol=1e-14, atol=1e-14),
-        direction=(False,) * len(conds),
-    )
+    event = dfx.Event(event_cond, root_finder=_EventBisection(), direction=False)
     term = dfx.ODETerm(vector_field)
     jump_ts = excitation.jump_times() if cfg.use_jump_ts else None
     if cfg.dt is not None:
@@ -137,35 +169,42 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
         base = (
             dfx.ConstantStepSize()
             if jump_ts is None
-            else dfx.PIDController(rtol=1.0, atol=1e300, dtmax=cfg.dt, factormax=1e6)
+            else _PIDController(rtol=1.0, atol=1e300, dtmax=cfg.dt, factormax=1e6)
         )
         dt0 = cfg.dt
     else:
-        base = dfx.PIDController(rtol=cfg.rtol, atol=cfg.atol)
+        base = _PIDController(rtol=cfg.rtol, atol=cfg.atol)
         dt0 = None
     # Steps end on the record's samples, where the interpolated forcing has kinks.
     controller = base if jump_ts is None else dfx.ClipStepSizeController(base, jump_ts=jump_ts)
     if cfg.adjoint == "forward":
-        adjoint = dfx.ForwardMode()
-        loop_kind = "lax"
+        adjoint, loop_kind = dfx.ForwardMode(), "lax"
     else:
-        adjoint = dfx.RecursiveCheckpointAdjoint()
-        loop_kind = "checkpointed"
+        adjoint, loop_kind = dfx.RecursiveCheckpointAdjoint(), "checkpointed"
 
+    # ---- initial state
     u0, v0 = excitation.initial_state()
     u0 = jnp.asarray(u0, dtype)
     v0 = jnp.asarray(v0, dtype)
     if isinstance(excitation, GroundMotion):
-        first = excitation.first_direction()
+        first = excitation.first_direction().astype(dtype)
+        acc0 = -model(s, u0) / M - excitation.ground_acceleration(jnp.zeros((), dtype))
     else:
         first = jnp.ones((), dtype)
-    sign0 = jnp.where(u0 != 0, jnp.sign(u0), jnp.where(v0 != 0, jnp.sign(v0), first))
-    sign0 = jnp.where(sign0 == 0, 1.0, sign0).astype(dtype)
+        acc0 = -model(s, u0) / M
 
-    n = ts.shape[0]
+    def nonzero_sign(x, fallback):
+        return jnp.where(x > 0, 1.0, jnp.where(x < 0, -1.0, fallback)).astype(dtype)
+
+    # side of u = 0 the motion is on (or about to be on), and the sign of v (or of the
+    # acceleration when starting from rest)
+    sign0 = nonzero_sign(u0, nonzero_sign(v0, first))
+    vsign0 = nonzero_sign(v0, nonzero_sign(acc0, -sign0))
     overturned0 = jnp.abs(u0) >= u_ot
-    E0 = 0.5 * M * v0**2 + jnp.abs(u0) * jnp.abs(model(s, u0))  # a scale, not the energy
     free = isinstance(excitation, FreeVibration)
+    E0 = 0.5 * M * v0**2 + jnp.abs(u0) * jnp.abs(model(s, u0))  # an energy scale
+    ts_pad = jnp.concatenate([ts, jnp.full((_WINDOW,), jnp.inf, dtype)])
+    window = jnp.arange(_WINDOW)
 
     init = dict(
         t=jnp.zeros((), dtype),
@@ -174,78 +213,86 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
         sign=sign0,
         side=jnp.where(jnp.abs(u0) < u_crit, 1.0, -1.0).astype(dtype),
         lift_offset=jnp.zeros((), dtype),
+        vsign=vsign0,
+        v_offset=jnp.zeros((), dtype),
         n_impacts=jnp.zeros((), jnp.int32),
         impact_times=jnp.full((cfg.max_impacts,), jnp.inf, dtype),
         out_u=jnp.zeros((n,), dtype),
         out_v=jnp.zeros((n,), dtype),
-        peak_u=jnp.abs(u0),
+        peak_u=jnp.minimum(jnp.abs(u0), u_ot),
         lifted=jnp.abs(u0) > u_crit,
         status=jnp.where(overturned0, STATUS["overturned"], STATUS["completed"]).astype(jnp.int32),
         t_overturn=jnp.where(overturned0, 0.0, jnp.inf).astype(dtype),
-        done=overturned0 | (t1 <= 0),
+        done=overturned0,
         rest=jnp.zeros((), bool),
     )
 
     def body(c):
         t_start = c["t"]
-        y0 = (c["u"], c["v"])
-        saveat = dfx.SaveAt(
-            subs=[
-                dfx.SubSaveAt(ts=jnp.clip(ts, t_start, t1)),
-                dfx.SubSaveAt(steps=True),
-                dfx.SubSaveAt(t1=True),
-            ]
-        )
+        # the window of output times handled by this segment
+        i0 = jnp.searchsorted(ts, t_start, side="left")
+        win = jax.lax.dynamic_slice(ts_pad, (i0,), (_WINDOW,))
+        full = i0 + _WINDOW < n
+        seg_t1 = jnp.where(full, win[-1], t1)
         sol = dfx.diffeqsolve(
             term,
             cfg.solver,
             t_start,
-            t1,
+            seg_t1,
             dt0,
-            y0,
-            args=(c["sign"], c["side"], c["lift_offset"]),
-            saveat=saveat,
+            (c["u"], c["v"]),
+            args=(c["sign"], c["side"], c["lift_offset"], c["vsign"], c["v_offset"]),
+            saveat=dfx.SaveAt(subs=[dfx.SubSaveAt(ts=jnp.clip(win, t_start, seg_t1)),
+                                    dfx.SubSaveAt(t1=True)]),
             stepsize_controller=controller,
             event=event,
             max_steps=cfg.max_steps,
             throw=False,
             adjoint=adjoint,
         )
-        (ys_ts, (steps_t, ys_steps), (tend, yend)) = (
-            sol.ys[0],
-            (sol.ts[1], sol.ys[1]),
-            (sol.ts[2][-1], (sol.ys[2][0][-1], sol.ys[2][1][-1])),
-        )
+        (u_win, v_win), tend = sol.ys[0], sol.ts[1][-1]
+        u_end, v_end = sol.ys[1][0][-1], sol.ys[1][1][-1]
         ok = (sol.result == dfx.RESULTS.successful) | (sol.result == dfx.RESULTS.event_occurred)
-        hit_impact = sol.event_mask[0] & ok
-        hit_overturn = sol.event_mask[1] & ok & ~hit_impact
-        if split:
-            hit_lift = sol.event_mask[2] & ok & ~hit_impact & ~hit_overturn
-        else:
-            hit_lift = jnp.zeros((), bool)
-        in_seg = (ts >= t_start) & (ts <= tend)
-        out_u = jnp.where(in_seg, jnp.where(jnp.isfinite(ys_ts[0]), ys_ts[0], 0.0), c["out_u"])
-        out_v = jnp.where(in_seg, jnp.where(jnp.isfinite(ys_ts[1]), ys_ts[1], 0.0), c["out_v"])
-        seg_peak = _segment_peak(steps_t, ys_steps, t_start, y0)
-        seg_peak = jnp.minimum(seg_peak, u_ot)
-        peak_u = jnp.maximum(c["peak_u"], seg_peak)
-        lifted = c["lifted"] | (seg_peak > u_crit)
-        # impact: restart at u = 0 with v <- sqrt(r) v (same sign), Eq. 2
-        real = lifted if cfg.impact == "after_uplift" else jnp.ones((), bool)
-        real = real & hit_impact
-        v_new = jnp.where(real, sqrt_r * yend[1], yend[1])
-        u_new = jnp.where(hit_impact, jnp.zeros_like(yend[0]), yend[0])
-        new_side = jnp.where(hit_lift, -c["side"], jnp.where(hit_impact, 1.0, c["side"]))
-        lift_offset = jnp.where(hit_lift, new_side * (u_crit - jnp.abs(u_new)), 0.0)
+        fired = sol.event_mask & ok
+        # Which event: the condition with the shortest time to its zero, |c| / |dc/dt| [s]
+        # (dimensionally consistent, unlike comparing metres with metres per second).
+        args = (c["sign"], c["side"], c["lift_offset"], c["vsign"], c["v_offset"])
+        acc_end = vector_field(tend, (u_end, v_end), args)[1]
+        vals, rates = conditions((u_end, v_end), (*args, acc_end))
+        which = jnp.argmin(jnp.abs(vals) / (jnp.abs(rates) + 1e-300))
+        hit_impact = fired & (which == 0)
+        hit_overturn = fired & (which == 1)
+        hit_turn = fired & (which == 2)
+        hit_lift = fired & (which == 3)
+
+        # outputs on this window
+        idx = i0 + window
+        valid = (win >= t_start) & (win <= tend) & (idx < n)
+        out_u = c["out_u"].at[idx].set(jnp.where(valid, u_win, c["out_u"][jnp.minimum(idx, n - 1)]),
+                                        mode="drop")
+        out_v = c["out_v"].at[idx].set(jnp.where(valid, v_win, c["out_v"][jnp.minimum(idx, n - 1)]),
+                                        mode="drop")
+
+        # |u| is monotonic within a segment, so its peak is at an end
+        peak_u = jnp.maximum(c["peak_u"], jnp.minimum(jnp.abs(u_end), u_ot))
+        lifted = c["lifted"] | (jnp.abs(u_end) > u_crit)
+
+        # impact: restart at u = 0 with v <- sqrt(r) v, same sign (Eq. 2)
+        real = hit_impact & (lifted if cfg.impact == "after_uplift" else True)
+        u_new = jnp.where(hit_impact, 0.0, u_end)
+        v_new = jnp.where(real, sqrt_r * v_end, v_end)
         n_imp = c["n_impacts"] + real.astype(jnp.int32)
-        idx = jnp.minimum(c["n_impacts"], cfg.max_impacts - 1)
-        impact_times = jnp.where(
-            real, c["impact_times"].at[idx].set(tend), c["impact_times"]
-        )
-        sign = jnp.where(hit_impact, jnp.where(v_new != 0, jnp.sign(v_new), c["sign"]), c["sign"])
+        slot = jnp.minimum(c["n_impacts"], cfg.max_impacts - 1)
+        impact_times = jnp.where(real, c["impact_times"].at[slot].set(tend), c["impact_times"])
+        sign = jnp.where(hit_impact, nonzero_sign(v_new, c["sign"]), c["sign"])
+        side = jnp.where(hit_lift, -c["side"], jnp.where(hit_impact, 1.0, c["side"]))
+        lift_offset = jnp.where(hit_lift, side * (u_crit - jnp.abs(u_new)), 0.0)
+        vsign = jnp.where(hit_turn, -c["vsign"], c["vsign"])
+        v_offset = jnp.where(hit_turn, vsign * v_new, 0.0)
+
         # stopping
         failed = ~ok
-        reached = ~hit_impact & ~hit_overturn & ~hit_lift & ok
+        reached = ok & ~fired & (tend >= t1)
         too_many = real & (n_imp >= cfg.max_impacts)
         # a free vibration that has run out of energy rests at u = 0
         rest = free & hit_impact & (0.5 * M * v_new**2 <= 1e-14 * E0)
@@ -254,15 +301,15 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
             [STATUS["solver_failure"], STATUS["overturned"], STATUS["max_impacts"]],
             c["status"],
         ).astype(jnp.int32)
-        t_ot = jnp.where(hit_overturn, tend, c["t_overturn"])
-        done = failed | hit_overturn | too_many | reached | rest
         return dict(
             t=tend,
             u=u_new,
             v=jnp.where(rest, 0.0, v_new),
             sign=sign,
-            side=new_side.astype(dtype),
+            side=side.astype(dtype),
             lift_offset=lift_offset.astype(dtype),
+            vsign=vsign,
+            v_offset=v_offset.astype(dtype),
             n_impacts=n_imp,
             impact_times=impact_times,
             out_u=out_u,
@@ -270,18 +317,18 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
             peak_u=peak_u,
             lifted=jnp.where(real, False, lifted),
             status=status,
-            t_overturn=t_ot,
-            done=done,
+            t_overturn=jnp.where(hit_overturn, tend, c["t_overturn"]),
+            done=failed | hit_overturn | too_many | reached | rest,
             rest=rest,
         )
 
+    # Bound on the number of segments: impacts, lift-offs (2 per impact), turning points
+    # (about 2 per impact) and windows.
+    max_segments = 6 * cfg.max_impacts + 2 * (n // (_WINDOW - 1) + 1) + 16
     final = eqxi.while_loop(
-        lambda c: ~c["done"],
-        body,
-        init,
-        max_steps=(4 if split else 1) * cfg.max_impacts + 8,
-        kind=loop_kind,
+        lambda c: ~c["done"], body, init, max_steps=max_segments, kind=loop_kind
     )
+    status = jnp.where(final["done"], final["status"], STATUS["max_impacts"]).astype(jnp.int32)
     # After the run stops (rest, overturning, failure) the outputs hold the last state.
     after = ts > final["t"]
     hold_u = jnp.where(final["rest"], 0.0, final["u"])
@@ -290,18 +337,17 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
     v_out = jnp.where(after, hold_v, final["out_v"])
     u_out = jnp.where(overturned0, u0, u_out)
     v_out = jnp.where(overturned0, v0, v_out)
-    theta = theta_from_u(s, u_out, rigid=rigid)
     return Response(
         ts=ts,
         u=u_out,
         v=v_out,
-        theta=theta,
+        theta=theta_from_u(s, u_out, rigid=rigid),
         uplift=uplift(s, u_out, rigid=rigid),
         impact_times=final["impact_times"],
         n_impacts=final["n_impacts"],
         peak_u=final["peak_u"],
         peak_uplift=uplift(s, final["peak_u"], rigid=rigid),
-        status=final["status"],
+        status=status,
         t_overturn=final["t_overturn"],
     )
 
@@ -424,10 +470,11 @@ def simulate(
         dt=None if dt is None else float(dt),
     )
     dtype = jnp.result_type(structure.B)
-    # every number becomes an array, so that new values never trigger a recompile
+    # every number becomes a strongly typed array, so that new values never trigger a
+    # recompile (eqx.tree_at, for one, can insert weakly typed leaves)
     return _simulate(
-        structure,
-        excitation,
+        _strong(structure),
+        _strong(excitation),
         jnp.asarray(t1, dtype),
         jnp.asarray(ts, dtype),
         jnp.asarray(r, dtype),

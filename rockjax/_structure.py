@@ -17,7 +17,8 @@ _FIELDS = ("m_e", "m_b", "H_e", "H_b", "B", "I_eg", "I_bg", "k_f", "g")
 def _as_float_array(x: ArrayLike) -> Float[Array, "..."]:
     """Convert to a floating JAX array, keeping an existing floating dtype (no downcast)."""
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
-        return x
+        # explicit dtype drops a weak type, so jnp.asarray(1.0) and 1.0 trace alike
+        return jnp.asarray(x, dtype=x.dtype)
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 

@@ -76,6 +76,11 @@ class _EventBisection(optx.Bisection):
 
     rtol: float = 4 * float(np.finfo(np.float64).eps)
     atol: float = 1e-300
+    # The event condition falls through its root (positive before, <= 0 after), and so does
+    # diffrax's stand-in when no event fired (distance to the step end); fixing the
+    # direction skips the sign check, which would raise under vmap, where diffrax evaluates
+    # the root find for batch members without an event too.
+    flip: bool = True
 
     def terminate(self, fn, y, args, options, state, tags):
         width = jnp.abs(state.upper - state.lower)

@@ -106,7 +106,7 @@ def fit_decay(
     model="simplified",
     impact="paper",
     initial=None,
-    starts: int = 4,
+    starts: int = 2,
     optimizer=None,
     max_iter: int = 40,
     horizons=(0.25, 0.5, 1.0),
@@ -343,20 +343,21 @@ def fit_decay(
     loss = float(final_losses[i_best])
     hist = np.concatenate(history, axis=1)[i_best]
 
-    # uncertainty: Gauss-Newton / Fisher information, in natural coordinates. Each channel
-    # (displacement, uplift) gets its own noise estimate sigma_c^2 = RSS_c / (N_c - P share),
-    # and Cov = (J^T W J)^-1 with W = diag(1 / sigma_c^2), in the scaled units of r and J.
+    # uncertainty: Gauss-Newton / Fisher information, in natural coordinates. The fit
+    # minimises unweighted least squares over the channels (displacement, uplift), whose
+    # noise levels differ, so the covariance is the sandwich A^-1 B A^-1 with A = J^T J,
+    # B = J^T diag(sigma_c^2) J and sigma_c^2 = RSS_c / (N_c - P share) for each channel.
     n_res, n_par = J.shape
     n_u = t.size
     channels = [slice(0, n_u)] + ([slice(n_u, n_res)] if n_res > n_u else [])
-    w = np.empty(n_res)
+    var = np.empty(n_res)
     sig2 = []
     for ch in channels:
         n_c = ch.stop - ch.start
         dof_c = max(n_c - n_par * n_c / n_res, 1.0)
         s2 = max(float(np.sum(r[ch] ** 2)) / dof_c, 1e-300)
         sig2.append(s2)
-        w[ch] = 1.0 / s2
+        var[ch] = s2
     sigma2 = sig2[0]
     vals_nat = {k: float(v) for k, v in decode(jnp.asarray(zb)).items()}
     dtheta_dz = []
@@ -371,9 +372,9 @@ def fit_decay(
         else:
             dtheta_dz.append(_T_SCALE)
     D = np.diag(dtheta_dz)
-    fisher = J.T @ (w[:, None] * J)
     try:
-        cov = D @ np.linalg.inv(fisher) @ D
+        a_inv = np.linalg.inv(J.T @ J)
+        cov = D @ (a_inv @ (J.T @ (var[:, None] * J)) @ a_inv) @ D
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = cov / np.outer(np.where(se > 0, se, 1.0), np.where(se > 0, se, 1.0))
     except np.linalg.LinAlgError:

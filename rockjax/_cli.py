@@ -139,7 +139,7 @@ def _derived_table(derived):
 
 
 # ---------------------------------------------------------------------- simulate
-def _nonneg_float(name):
+def _finite_float(name):
     def conv(text):
         try:
             x = float(text)
@@ -214,6 +214,153 @@ def cmd_simulate(args):
         print(f"plot written to {args.plot}")
     return 0
 
+
+# --------------------------------------------------------------------------- fit
+_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s"}
+
+
+def _fit_trace(trace, structure, params, *, model="simplified", starts=None, progress=None):
+    """`identification.fit_decay` from the structure's k_f and Eq-3 r. IdentifiabilityWarnings
+    are captured (their messages are in `fit.warnings`, printed by the caller), other
+    warnings are passed on."""
+    import warnings
+
+    import identification
+
+    initial = {"k_f": float(structure.k_f), "r": float(structure.restitution)}
+    initial = {k: v for k, v in initial.items() if k in params}
+    kwargs = {} if starts is None else {"starts": starts}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", identification.IdentifiabilityWarning)
+        fit = identification.fit_decay(
+            trace, structure, params=tuple(params), model=model, initial=initial,
+            progress=progress, **kwargs,
+        )
+    for w in caught:
+        if not issubclass(w.category, identification.IdentifiabilityWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return fit
+
+
+def _fit_value_table(fit, truth=None):
+    head = f"{'parameter':<10}{'fitted':>14}{'std. error':>14}"
+    if truth is not None:
+        head += f"{'true':>14}{'error/SE':>10}"
+    lines = [head + "  unit"]
+    for p in fit.names:
+        v, se = fit.values[p], fit.stderr[p]
+        row = f"{p:<10}{v:>14.6g}{se:>14.3g}"
+        if truth is not None:
+            z = (v - truth[p]) / se if se > 0 and math.isfinite(se) else float("nan")
+            row += f"{truth[p]:>14.6g}{z:>10.2f}"
+        lines.append(row + f"  {_FIT_UNITS[p]}")
+    return "\n".join(lines)
+
+
+def _fit_stats_lines(fit):
+    lines = []
+    rho = fit.identifiability.get("corr_k_f_r")
+    if rho is not None:
+        lines.append(f"corr(k_f, r)  {rho:+.4f}")
+    lines.append(f"loss          {fit.loss:.6g}  (1/2 sum of squared residuals / scale^2)")
+    lines.append(f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)")
+    lines.append(f"converged     {'yes' if fit.converged else 'NO'}"
+                 f"  ({fit.n_iterations} iterations)")
+    for w in fit.warnings:
+        lines.append(f"warning: {w}")
+    return lines
+
+
+def plot_fit(trace, fit, *, title=None, measured_label="measured"):
+    """Measured and fitted displacement (and uplift, when measured) with a residual panel.
+    Returns a matplotlib Figure (no pyplot)."""
+    import numpy as np
+
+    from ._plotting import new_figure
+
+    t = np.asarray(trace.t)
+    u_fit = np.asarray(fit.response.u)
+    has_up = trace.uplift is not None
+    panels = 3 if has_up else 2
+    fig = new_figure(figsize=(9, 2.3 * panels + 0.8))
+    axes = fig.subplots(panels, 1, sharex=True,
+                        gridspec_kw={"height_ratios": [2] * (panels - 1) + [1]})
+    ax_u, ax_res = axes[0], axes[-1]
+    ax_u.plot(t, 1e3 * np.asarray(trace.u), ".", ms=2, color="0.45", label=measured_label)
+    ax_u.plot(t, 1e3 * u_fit, color="C3", lw=1.1, label="fitted")
+    ax_u.set_ylabel("displacement u [mm]")
+    ax_u.legend(fontsize=8, loc="upper right")
+    ax_res.plot(t, 1e3 * (np.asarray(trace.u) - u_fit), color="C0", lw=0.7, label="u")
+    if has_up:
+        up_fit = np.asarray(fit.response.uplift)
+        ax_up = axes[1]
+        ax_up.plot(t, 1e3 * np.asarray(trace.uplift), ".", ms=2, color="0.45",
+                   label=measured_label)
+        ax_up.plot(t, 1e3 * up_fit, color="C3", lw=1.1, label="fitted")
+        ax_up.set_ylabel("uplift [mm]")
+        ax_res.plot(t, 1e3 * (np.asarray(trace.uplift) - up_fit), color="C2", lw=0.7,
+                    label="uplift")
+        ax_res.legend(fontsize=8, loc="upper right", ncol=2)
+    ax_res.axhline(0.0, color="k", lw=0.5)
+    ax_res.set_ylabel("residual [mm]")
+    ax_res.set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    vals = ", ".join(
+        f"{p} = {fit.values[p]:.4g} ± {fit.stderr[p]:.2g}" for p in fit.names
+    )
+    conv = "converged" if fit.converged else "NOT converged"
+    axes[0].set_title((title + "\n" if title else "") + f"{vals}; rms residual "
+                      f"{1e3 * fit.rms:.3g} mm, {conv}", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def cmd_fit(args):
+    import identification
+
+    _check_png(args.plot)
+    params = tuple(args.params)
+    if len(set(params)) != len(params):
+        raise CLIError(f"--params: each parameter at most once, got {' '.join(params)}")
+    s = _load_structure(args.structure)
+    trace = identification.read_trace(args.trace)
+    fit = _fit_trace(trace, s, params, model=args.model, starts=args.starts,
+                     progress=False if args.json else None)
+    if args.plot:
+        fig = plot_fit(trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, "
+                       f"{args.model} model")
+        fig.savefig(args.plot, dpi=150)
+    if args.json:
+        print(json.dumps(fit.summary()))
+        return 0
+    print(f"trace         {args.trace}: {trace.n} samples over {trace.duration:.4g} s"
+          f"{', with uplift' if trace.uplift is not None else ''}")
+    print(f"model         {args.model}; start k_f = {float(s.k_f):.6g} N/m, "
+          f"r = {float(s.restitution):.4f} (Eq 3)")
+    print()
+    print(_fit_value_table(fit))
+    print()
+    for line in _fit_stats_lines(fit):
+        print(line)
+    if "u0" not in params:
+        print(f"note: u0 held at the first measured sample ({fit.fixed['u0']:.6g} m); "
+              "for noisy traces add u0 to --params")
+    if args.plot:
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+def _starts(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--starts must be an integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"--starts must be at least 1, got {n}")
+    return n
+
+
 # -------------------------------------------------------------------------- demo
 def _demo_ground_motion():
     """El Centro 1940 NS if cached, local (ROCKJAX_EL_CENTRO) or downloadable; else synthetic."""
@@ -286,6 +433,34 @@ def cmd_demo(args):
         sm = res.summary()
         print(f"{label:<34}{1e3 * sm['peak_u']:>14.2f}{1e3 * sm['peak_uplift']:>18.2f}"
               f"{sm['n_impacts']:>9d}  {sm['status']}")
+
+    # identification: fit k_f and r to the SYNTHETIC noisy decay trace shipped with rockjax
+    import identification
+
+    name_tr = "synthetic_decay_noisy"
+    trace = identification.read_trace(identification.synthetic_trace_path(name_tr))
+    truth = identification.synthetic_truth(name_tr)
+    # u0 is fitted too: the first measured sample carries the noise, and holding u0 there
+    # would bias k_f and r (see README, identification)
+    fit = _fit_trace(trace, s, ("k_f", "r", "u0"), model=truth.get("model", "simplified"),
+                     progress=False)
+    fig = plot_fit(
+        trace, fit, measured_label="SYNTHETIC measured trace",
+        title=f"Identification of k_f and r from {name_tr} (SYNTHETIC: true k_f = "
+        f"{truth['k_f']:.4g} N/m, r = {truth['r']:.3g}), started from Table 1",
+    )
+    written.append(out / "identification.png")
+    fig.savefig(written[-1], dpi=150)
+    print()
+    # (lower-case "synthetic" here: "SYNTHETIC" on stdout flags the ground-motion fallback)
+    print(f"identification: fit of k_f, r (and u0) to the synthetic decay trace {name_tr} "
+          f"(a rockjax simulation with noise, not a measurement; {trace.n} samples, "
+          f"{trace.duration:.3g} s), started from Table 1 (k_f = {float(s.k_f):.4g} N/m, "
+          f"r = {float(s.restitution):.3f} from Eq 3)")
+    print(_fit_value_table(fit, truth=truth))
+    for line in _fit_stats_lines(fit):
+        print(line)
+
     print()
     for p in written:
         print(f"wrote {p}")
@@ -333,12 +508,12 @@ def build_parser():
         "t a, or one column with --record-dt) [--units g|m/s2] [--scale S].",
     )
     m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    m.add_argument("--u0", type=_nonneg_float("--u0"), metavar="M", help="release displacement [m]")
-    m.add_argument("--v0", type=_nonneg_float("--v0"), default=0.0, metavar="V",
+    m.add_argument("--u0", type=_finite_float("--u0"), metavar="M", help="release displacement [m]")
+    m.add_argument("--v0", type=_finite_float("--v0"), default=0.0, metavar="V",
                    help="release velocity [m/s] (default 0)")
     m.add_argument("--record", metavar="FILE", help="ground-motion record file")
     m.add_argument("--units", choices=["g", "m/s2"], help="units of the record's values")
-    m.add_argument("--scale", type=_nonneg_float("--scale"), default=1.0,
+    m.add_argument("--scale", type=_finite_float("--scale"), default=1.0,
                    help="scale factor on the record (default 1)")
     m.add_argument("--record-dt", type=_positive_float("--record-dt"), metavar="DT",
                    help="sample step [s] of a one-column record")
@@ -346,7 +521,7 @@ def build_parser():
                    help="end time [s] (default: 4 s, or the record's length)")
     m.add_argument("--model", choices=["simplified", "exact", "smooth", "housner"],
                    default="simplified", help="restoring-force model (default simplified)")
-    m.add_argument("--r", type=_nonneg_float("--r"), metavar="R",
+    m.add_argument("--r", type=_finite_float("--r"), metavar="R",
                    help="coefficient of restitution in [0, 1] (default: Eq 3)")
     m.add_argument("--impact", choices=["paper", "after_uplift"], default="paper",
                    help="impact rule (default paper: every crossing of u = 0)")
@@ -354,6 +529,31 @@ def build_parser():
     m.add_argument("--plot", metavar="FILE.png", help="write a Fig 9/10-style plot")
     m.add_argument("--json", action="store_true", help="print a JSON summary and nothing else")
     m.set_defaults(func=cmd_simulate)
+
+    f = sub.add_parser(
+        "fit",
+        help="fit k_f and r (and u0, t0) to a measured free-vibration decay trace",
+        description="Fit the foundation stiffness k_f and the coefficient of restitution r "
+        "(optionally the release displacement u0 and time t0) of a structure to a "
+        "free-vibration decay trace: a CSV file with header 't,u' or 't,u,uplift' (SI "
+        "units: s, m, m; leading '#' comment lines allowed). The fit starts from the "
+        "structure's k_f and its Eq 3 restitution and reports standard errors, the k_f-r "
+        "correlation and identifiability warnings.",
+    )
+    f.add_argument("trace", metavar="TRACE.csv", help="decay trace (t,u[,uplift])")
+    f.add_argument("--structure", metavar="FILE.toml",
+                   help="structure file (default: Table 1); its k_f and Eq 3 r are the start")
+    f.add_argument("--params", nargs="+", choices=["k_f", "r", "u0", "t0"],
+                   default=["k_f", "r"], metavar="P",
+                   help="parameters to fit, from k_f r u0 t0 (default: k_f r)")
+    f.add_argument("--model", choices=["simplified", "exact", "smooth", "housner"],
+                   default="simplified", help="restoring-force model (default simplified)")
+    f.add_argument("--starts", type=_starts, metavar="N",
+                   help="number of optimiser starts, run in parallel (default: fit_decay's)")
+    f.add_argument("--plot", metavar="FILE.png",
+                   help="write measured vs fitted traces and residuals")
+    f.add_argument("--json", action="store_true", help="print one JSON object and nothing else")
+    f.set_defaults(func=cmd_fit)
     return p
 
 

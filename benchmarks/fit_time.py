@@ -2,11 +2,12 @@
 
     python benchmarks/fit_time.py [--starts N] [--json]
 
-Fits (k_f, r, and the nuisance u0) of the Table 1 column to `synthetic_decay_noisy` (true k_f = 800 kN/m,
-r = 0.85) from 2x away: k_f = 1.6 MN/m (twice the truth) and r = 0.7. Reports the first
-fit's wall time in this fresh process (tracing and compiling included), a second identical
-fit's wall time (compiled) and the time per optimiser iteration (second fit / its
-`n_iterations`), and the recovered values against the truth with their standard errors.
+Fits (k_f, r, and the nuisance u0) of the Table 1 column to `synthetic_decay_noisy`
+(true k_f = 800 kN/m, r = 0.85) from 2x away: k_f = 1.6 MN/m (twice the truth) and r =
+0.7. Reports the first fit's wall time in this fresh process (tracing and compiling
+included), a second identical fit's wall time (compiled) and the time per optimiser
+iteration (second fit / its `n_iterations`), and the recovered values against the truth
+with their standard errors.
 Prints a markdown table (and JSON with --json); writes no files.
 """
 

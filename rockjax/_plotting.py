@@ -126,7 +126,7 @@ def plot_response(structure, response, *, ground_motion=None, title=None, label=
         ax.grid(alpha=0.3)
     if label or overlay:
         ax_u.legend(fontsize=8, loc="upper right")
-    status = STATUS_TEXT.get(int(res.status), "?")
+    status = _status_text(res.status)
     summary = (f"peak |u| = {1e3 * float(res.peak_u):.1f} mm, peak uplift = "
                f"{1e3 * float(res.peak_uplift):.1f} mm, {int(res.n_impacts)} impacts, {status}")
     axes[0].set_title((title + "\n" if title else "") + summary, fontsize=10)
@@ -134,4 +134,8 @@ def plot_response(structure, response, *, ground_motion=None, title=None, label=
     return fig
 
 
-STATUS_TEXT = {0: "completed", 1: "OVERTURNED", 2: "max impacts reached", 3: "solver failure"}
+def _status_text(code):
+    from ._response import STATUS_NAMES
+
+    name = STATUS_NAMES.get(int(code), "?")
+    return "OVERTURNED" if name == "overturned" else name.replace("_", " ")

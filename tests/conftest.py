@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import pathlib
+import subprocess
+import sys
 
 import jax
 import pytest
@@ -21,6 +23,17 @@ def shared_ground_motions() -> pathlib.Path:
     if env:
         return pathlib.Path(env)
     return REPO.parent / "shared" / "data" / "ground_motions"
+
+
+def run_cli(*args, cwd=None):
+    """Run the real console entry point in a subprocess (as a user would)."""
+    return subprocess.run(
+        [sys.executable, "-m", "rockjax._cli", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+    )
 
 
 @pytest.fixture(scope="session")

@@ -3,23 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import pytest
+from conftest import run_cli
 
 from rockjax._cli import main
-
-
-def run_cli(*args, cwd=None):
-    """Run the real console entry point in a subprocess (as a user would)."""
-    return subprocess.run(
-        [sys.executable, "-m", "rockjax._cli", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=600,
-    )
 
 
 def test_help():

@@ -11,10 +11,9 @@ import contextlib
 import io
 import json
 import shutil
-import subprocess
-import sys
 
 import pytest
+from conftest import run_cli
 
 import identification
 from rockjax._cli import main
@@ -23,14 +22,6 @@ CLEAN = "synthetic_decay_clean"
 NOISY = "synthetic_decay_noisy"
 
 
-def run_cli(*args, cwd=None):
-    return subprocess.run(
-        [sys.executable, "-m", "rockjax._cli", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=600,
-    )
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from . import datasets as datasets  # noqa: E402
+from ._batch import simulate_batch as simulate_batch, Summary as Summary  # noqa: E402
 from ._excitation import (  # noqa: E402
     AbstractExcitation as AbstractExcitation,
     FreeVibration as FreeVibration,

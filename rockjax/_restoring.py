@@ -53,6 +53,16 @@ class AbstractRestoringForce(eqx.Module):
         """(before lift-off, after lift-off) forces [N], each extended smoothly past u_crit."""
         raise NotImplementedError
 
+    def locked(self, structure, u, sign, lifted):
+        """k(u) [N] on one smooth branch, continued smoothly past the branch's ends.
+
+        The branch is the side `sign` (+1 or -1) of $u = 0$ and, for models that jump at
+        lift-off, before (`lifted` False) or after lift-off. Used by the fixed-step
+        integrator (`rockjax.simulate_batch`), whose trial steps may overshoot an event.
+        Default: `self(structure, u)` (for laws that are smooth everywhere).
+        """
+        return self(structure, u)
+
 
 class Simplified(AbstractRestoringForce):
     r"""The paper's piecewise-linear $k(u)$: Eq. 13 before lift-off, Eq. 20 after.
@@ -72,6 +82,10 @@ class Simplified(AbstractRestoringForce):
     def branches(self, structure, u):
         u = jnp.asarray(u)
         return structure.K1 * u, jnp.sign(u) * _simplified_post(structure, jnp.abs(u))
+
+    def locked(self, structure, u, sign, lifted):
+        post = sign * _simplified_post(structure, sign * u)
+        return jnp.where(lifted, post, structure.K1 * u)
 
     def __call__(self, structure, u):
         u = jnp.asarray(u)
@@ -100,6 +114,13 @@ class Exact(AbstractRestoringForce):
         arg = jnp.sin(s.alpha_e - tu) + (s.u_crit - a) / s.R_e
         theta = s.alpha_e - jnp.arcsin(jnp.clip(arg, -1.0, 1.0))
         return s.K1 * u, jnp.sign(u) * _rocking_force(s, theta)
+
+    def locked(self, structure, u, sign, lifted):
+        s = structure
+        tu = jnp.arcsin(jnp.clip(s.delta_0 / s.B, -1.0, 1.0))
+        arg = jnp.sin(s.alpha_e - tu) + (s.u_crit - sign * u) / s.R_e
+        theta = s.alpha_e - jnp.arcsin(jnp.clip(arg, -1.0, 1.0))
+        return jnp.where(lifted, sign * _rocking_force(s, theta), s.K1 * u)
 
     def __call__(self, structure, u):
         u = jnp.asarray(u)
@@ -162,6 +183,12 @@ class Housner(AbstractRestoringForce):
         u = jnp.asarray(u)
         theta = theta_from_u(s, jnp.abs(u), rigid=True)
         return jnp.sign(u) * _rocking_force(s, theta)
+
+    def locked(self, structure, u, sign, lifted):
+        s = structure
+        # u = R_e [sin(alpha_e) - sin(alpha_e - theta)] on the side `sign`, continued past 0
+        theta = s.alpha_e - jnp.arcsin(jnp.clip(jnp.sin(s.alpha_e) - sign * u / s.R_e, -1.0, 1.0))
+        return sign * _rocking_force(s, theta)
 
 
 MODELS = {

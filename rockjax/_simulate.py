@@ -374,6 +374,8 @@ def simulate(
     adjoint: str = "reverse",
     jump_ts: bool = True,
     dt: float | None = None,
+    method: str = "diffrax",
+    substeps: int = 1,
 ) -> Response:
     r"""Integrate Eq. 1 from $t = 0$ to `t1` with impacts at $u = 0$ (Eqs 1–3).
 
@@ -404,6 +406,15 @@ def simulate(
     - `jump_ts`: tell the step-size controller where a record's samples are (default True).
     - `dt`: a fixed step [s] instead of adaptive steps (`rtol`, `atol` then unused). The
       result is then a smooth function of every parameter, impact times included.
+    - `method`: `"diffrax"` (default): the event-restart diffrax solve described above.
+      `"rk4"`: the fast path of `rockjax.simulate_batch`, fixed RK4 steps on the record's
+      samples (`substeps` per interval; for a free vibration, steps of `dt`, default
+      t1/4000) with each event located inside its step; `jax.grad` and `jax.jacfwd` work.
+      `"dopri5"`: the same loop with adaptive Dormand–Prince 5(4) steps to `rtol`, `atol`
+      (forward-mode `jax.jacfwd` only). Both need a concrete `t1`; outputs are computed on
+      the grid and interpolated (cubic Hermite) to `ts`. Much faster for a full record
+      (see `benchmarks/results.md`); `solver`, `max_steps`, `adjoint` and `jump_ts` apply
+      to `"diffrax"` only.
 
     **Returns:** a `Response` (see its docstring). Runtime failures come back as
     `Response.status`, never as NaN: completed, overturned, max_impacts, solver_failure.
@@ -462,6 +473,18 @@ def simulate(
         raise ValueError(f"max_impacts must be a positive integer, got {max_impacts!r}")
     if dt is not None and not (isinstance(dt, (int, float)) and dt > 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    if method not in ("diffrax", "rk4", "dopri5"):
+        raise ValueError(f"method must be 'diffrax', 'rk4' or 'dopri5', got {method!r}")
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+    if method != "diffrax":
+        from ._batch import simulate_fast
+
+        return simulate_fast(
+            _strong(structure), _strong(excitation), t1, ts, r, model=model, impact=impact,
+            method=method, substeps=substeps, dt=dt, rtol=rtol, atol=atol,
+            max_impacts=max_impacts, max_pieces=None,
+        )
     cfg = _Config(
         model=get_model(model),
         impact=impact,

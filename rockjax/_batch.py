@@ -176,18 +176,11 @@ def _fast_chunk(batched, shared, table, dt_rec, t1, cfg, n_devices):
     def kernel(batched):
         vals = {**shared, **batched}
         s = RockingStructure(**{k: vals[k] for k in _FIELDS})
-        return _fast.run(
-            s,
-            table,
-            vals["record"],
-            dt_rec,
-            vals["scale"],
-            vals["u0"],
-            vals["v0"],
-            vals["r"],
-            t1,
-            cfg,
-        )
+        out = _fast.run(s, table, vals["record"], dt_rec, vals["scale"], vals["u0"],
+                        vals["v0"], vals["r"], t1, cfg)
+        if cfg.full:  # batch axis first, as the sharding (and every other output) has it
+            out = dict(out, u=out["u"].T, v=out["v"].T)
+        return out
 
     if n_devices == 1:
         return kernel(batched)
@@ -469,8 +462,6 @@ def simulate_batch(
                     fcfg,
                     n_dev,
                 )
-                if not summary_only:
-                    out = dict(out, u=out["u"].T, v=out["v"].T)
             n_keep = min(chunk, N - lo)
             parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[:n_keep], out))
             if bar is not None:
@@ -530,8 +521,9 @@ def _per_member(fn, structure, x, N):
 def _hermite_resample(grid, u, v, ts):
     """Cubic Hermite interpolation of (u, v) from the grid to ts (last axis)."""
     i = np.clip(np.searchsorted(grid, ts, side="right") - 1, 0, len(grid) - 2)
-    h = grid[i + 1] - grid[i]
-    s = (ts - grid[i]) / h
+    dtype = u.dtype
+    h = (grid[i + 1] - grid[i]).astype(dtype)
+    s = ((ts - grid[i]) / (grid[i + 1] - grid[i])).astype(dtype)
     u0, u1, m0, m1 = u[..., i], u[..., i + 1], v[..., i] * h, v[..., i + 1] * h
     s2, s3 = s * s, s * s * s
     uu = (
@@ -620,7 +612,7 @@ def simulate_fast(
     )
     u, v = out["u"][:, 0], out["v"][:, 0]
     ts_n = grid if ts is None else np.asarray(ts, float)
-    if ts is not None:
+    if ts is not None and not (ts_n.shape == grid.shape and np.array_equal(ts_n, grid)):
         u, v = _hermite_resample(grid, u, v, ts_n)
     rigid = cfg.model.rigid
     peak = out["peak_u"][0]

@@ -1,4 +1,4 @@
-"""The `rockjax` command line: `rockjax demo`, `rockjax pushover`, ...
+"""The `rockjax` command line: `rockjax demo`, `rockjax pushover`, `rockjax sweep`, ...
 
 Every bad input ends with a non-zero exit code and a one-line message on stderr, never a
 traceback.
@@ -137,7 +137,6 @@ def _derived_table(derived):
     return "\n".join(lines)
 
 
-
 # ---------------------------------------------------------------------- simulate
 def _finite_float(name):
     def conv(text):
@@ -233,8 +232,13 @@ def _fit_trace(trace, structure, params, *, model="simplified", starts=None, pro
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", identification.IdentifiabilityWarning)
         fit = identification.fit_decay(
-            trace, structure, params=tuple(params), model=model, initial=initial,
-            progress=progress, **kwargs,
+            trace,
+            structure,
+            params=tuple(params),
+            model=model,
+            initial=initial,
+            progress=progress,
+            **kwargs,
         )
     for w in caught:
         if not issubclass(w.category, identification.IdentifiabilityWarning):
@@ -264,8 +268,9 @@ def _fit_stats_lines(fit):
         lines.append(f"corr(k_f, r)  {rho:+.4f}")
     lines.append(f"loss          {fit.loss:.6g}  (1/2 sum of squared residuals / scale^2)")
     lines.append(f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)")
-    lines.append(f"converged     {'yes' if fit.converged else 'NO'}"
-                 f"  ({fit.n_iterations} iterations)")
+    lines.append(
+        f"converged     {'yes' if fit.converged else 'NO'}  ({fit.n_iterations} iterations)"
+    )
     for w in fit.warnings:
         lines.append(f"warning: {w}")
     return lines
@@ -283,8 +288,9 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
     has_up = trace.uplift is not None
     panels = 3 if has_up else 2
     fig = new_figure(figsize=(9, 2.3 * panels + 0.8))
-    axes = fig.subplots(panels, 1, sharex=True,
-                        gridspec_kw={"height_ratios": [2] * (panels - 1) + [1]})
+    axes = fig.subplots(
+        panels, 1, sharex=True, gridspec_kw={"height_ratios": [2] * (panels - 1) + [1]}
+    )
     ax_u, ax_res = axes[0], axes[-1]
     ax_u.plot(t, 1e3 * np.asarray(trace.u), ".", ms=2, color="0.45", label=measured_label)
     ax_u.plot(t, 1e3 * u_fit, color="C3", lw=1.1, label="fitted")
@@ -294,24 +300,24 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
     if has_up:
         up_fit = np.asarray(fit.response.uplift)
         ax_up = axes[1]
-        ax_up.plot(t, 1e3 * np.asarray(trace.uplift), ".", ms=2, color="0.45",
-                   label=measured_label)
+        ax_up.plot(t, 1e3 * np.asarray(trace.uplift), ".", ms=2, color="0.45", label=measured_label)
         ax_up.plot(t, 1e3 * up_fit, color="C3", lw=1.1, label="fitted")
         ax_up.set_ylabel("uplift [mm]")
-        ax_res.plot(t, 1e3 * (np.asarray(trace.uplift) - up_fit), color="C2", lw=0.7,
-                    label="uplift")
+        ax_res.plot(
+            t, 1e3 * (np.asarray(trace.uplift) - up_fit), color="C2", lw=0.7, label="uplift"
+        )
         ax_res.legend(fontsize=8, loc="upper right", ncol=2)
     ax_res.axhline(0.0, color="k", lw=0.5)
     ax_res.set_ylabel("residual [mm]")
     ax_res.set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-    vals = ", ".join(
-        f"{p} = {fit.values[p]:.4g} ± {fit.stderr[p]:.2g}" for p in fit.names
-    )
+    vals = ", ".join(f"{p} = {fit.values[p]:.4g} ± {fit.stderr[p]:.2g}" for p in fit.names)
     conv = "converged" if fit.converged else "NOT converged"
-    axes[0].set_title((title + "\n" if title else "") + f"{vals}; rms residual "
-                      f"{1e3 * fit.rms:.3g} mm, {conv}", fontsize=10)
+    axes[0].set_title(
+        (title + "\n" if title else "") + f"{vals}; rms residual {1e3 * fit.rms:.3g} mm, {conv}",
+        fontsize=10,
+    )
     fig.tight_layout()
     return fig
 
@@ -325,27 +331,40 @@ def cmd_fit(args):
         raise CLIError(f"--params: each parameter at most once, got {' '.join(params)}")
     s = _load_structure(args.structure)
     trace = identification.read_trace(args.trace)
-    fit = _fit_trace(trace, s, params, model=args.model, starts=args.starts,
-                     progress=False if args.json else None)
+    fit = _fit_trace(
+        trace,
+        s,
+        params,
+        model=args.model,
+        starts=args.starts,
+        progress=False if args.json else None,
+    )
     if args.plot:
-        fig = plot_fit(trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, "
-                       f"{args.model} model")
+        fig = plot_fit(
+            trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, {args.model} model"
+        )
         fig.savefig(args.plot, dpi=150)
     if args.json:
         print(json.dumps(fit.summary()))
         return 0
-    print(f"trace         {args.trace}: {trace.n} samples over {trace.duration:.4g} s"
-          f"{', with uplift' if trace.uplift is not None else ''}")
-    print(f"model         {args.model}; start k_f = {float(s.k_f):.6g} N/m, "
-          f"r = {float(s.restitution):.4f} (Eq 3)")
+    print(
+        f"trace         {args.trace}: {trace.n} samples over {trace.duration:.4g} s"
+        f"{', with uplift' if trace.uplift is not None else ''}"
+    )
+    print(
+        f"model         {args.model}; start k_f = {float(s.k_f):.6g} N/m, "
+        f"r = {float(s.restitution):.4f} (Eq 3)"
+    )
     print()
     print(_fit_value_table(fit))
     print()
     for line in _fit_stats_lines(fit):
         print(line)
     if "u0" not in params:
-        print(f"note: u0 held at the first measured sample ({fit.fixed['u0']:.6g} m); "
-              "for noisy traces add u0 to --params")
+        print(
+            f"note: u0 held at the first measured sample ({fit.fixed['u0']:.6g} m); "
+            "for noisy traces add u0 to --params"
+        )
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0
@@ -359,6 +378,362 @@ def _starts(text):
     if n < 1:
         raise argparse.ArgumentTypeError(f"--starts must be at least 1, got {n}")
     return n
+
+
+# ------------------------------------------------------------------------- sweep
+_MAX_SCALES = 1_000_000
+
+
+def _scales(text):
+    """--scales: a comma list "0.5,1,1.5" or a range "START:STOP:N" (N points, inclusive)."""
+    import numpy as np
+
+    t = text.strip()
+    if ":" in t:
+        parts = t.split(":")
+        if len(parts) != 3:
+            raise argparse.ArgumentTypeError(f"a range is START:STOP:N, got {text!r}")
+        try:
+            a, b = float(parts[0]), float(parts[1])
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"START and STOP of START:STOP:N must be numbers, got {text!r}"
+            ) from None
+        try:
+            n = int(parts[2])
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"N of START:STOP:N must be an integer, got {text!r}"
+            ) from None
+        if n < 1:
+            raise argparse.ArgumentTypeError(f"N of START:STOP:N must be at least 1, got {n}")
+        if n > _MAX_SCALES:
+            raise argparse.ArgumentTypeError(
+                f"N of START:STOP:N must be at most {_MAX_SCALES}, got {n}"
+            )
+        values = [a, b]
+    else:
+        values = []
+        for item in t.split(","):
+            try:
+                values.append(float(item))
+            except ValueError:
+                raise argparse.ArgumentTypeError(
+                    f"expected a comma list of numbers such as 0.5,1,1.5 or a range "
+                    f"START:STOP:N, got {text!r}"
+                ) from None
+    for x in values:
+        if not math.isfinite(x) or x <= 0:
+            raise argparse.ArgumentTypeError(
+                f"scale factors must be positive and finite, got {text!r}"
+            )
+    if ":" in t:
+        return [float(x) for x in np.linspace(values[0], values[1], n)]
+    return values
+
+
+def _positive_int(name):
+    def conv(text):
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if n < 1:
+            raise argparse.ArgumentTypeError(f"{name} must be a positive integer, got {n}")
+        return n
+
+    return conv
+
+
+def _unique_labels(paths):
+    """File stems as labels; the path as given where stems collide, then a #k suffix."""
+    stems = [pathlib.Path(p).stem for p in paths]
+    labels = [str(p) if stems.count(s) > 1 else s for p, s in zip(paths, stems)]
+    out = []
+    for i, lab in enumerate(labels):
+        k = labels[:i].count(lab)
+        out.append(f"{lab}#{k + 1}" if k or labels.count(lab) > 1 else lab)
+    return out
+
+
+def _check_out_dir(option, path):
+    if path is None:
+        return
+    p = pathlib.Path(path)
+    if p.is_dir():
+        raise CLIError(f"{option} is a directory: {path}")
+    if not p.parent.is_dir():
+        raise CLIError(f"{option}: directory not found: {p.parent}")
+
+
+def _sweep_records(paths, units, dt):
+    """The records as one GroundMotion (accel (n_records, n_samples), zero-padded)."""
+    import numpy as np
+
+    from ._excitation import GroundMotion
+    from ._records import read_record
+
+    recs = []
+    for path in paths:
+        try:
+            recs.append(read_record(path, units=units, dt=dt))
+        except (ValueError, OSError) as e:
+            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise CLIError(f"--record: {msg}") from None
+    dts = [float(r.dt) for r in recs]
+    if any(not math.isclose(d, dts[0], rel_tol=1e-6) for d in dts):
+        detail = ", ".join(f"{pathlib.Path(p).name} dt = {d:g} s" for p, d in zip(paths, dts))
+        raise CLIError(f"--record: the records must share one time step, got {detail}")
+    n = max(r.accel.size for r in recs)
+    accel = np.zeros((len(recs), n))
+    for i, r in enumerate(recs):
+        accel[i, : r.accel.size] = np.asarray(r.accel)
+    return GroundMotion(dt=dts[0], accel=accel)
+
+
+def plot_sweep(scales, results, *, u_overturn, structures, records, title=None):
+    """Peak |u| against scale (one line per structure x record; overturned runs as x at
+    u_overturn) and the fraction overturned against scale (per structure).
+
+    `results[i]` holds arrays of shape (n_scales, n_records) `peak_u` [m] and `status` for
+    structure i. Returns a matplotlib Figure (no pyplot)."""
+    import numpy as np
+
+    from ._plotting import new_figure
+    from ._response import STATUS
+
+    x = np.asarray(scales, float)
+    order = np.argsort(x, kind="stable")
+    xs = x[order]
+    fig = new_figure(figsize=(8.5, 7.5), layout="constrained")
+    ax_u, ax_f = fig.subplots(2, 1, sharex=True)
+    styles = ["-", "--", ":", "-."]
+    many = len(structures) > 1
+    n_lines = len(structures) * len(records)
+    any_over = any_other = False
+    for si, (res, lab_s) in enumerate(zip(results, structures)):
+        status = np.asarray(res["status"])[order]
+        peak = 1e3 * np.asarray(res["peak_u"])[order]
+        over = status == STATUS["overturned"]
+        other = (status != STATUS["overturned"]) & (status != STATUS["completed"])
+        u_ov = 1e3 * float(u_overturn[si])
+        for ri, lab_r in enumerate(records):
+            color = f"C{ri % 10}"
+            label = f"{lab_s} / {lab_r}" if many else lab_r
+            ax_u.plot(
+                xs,
+                np.where(over[:, ri], np.nan, peak[:, ri]),
+                styles[si % 4],
+                marker="o",
+                ms=3,
+                lw=1.2,
+                color=color,
+                label=label,
+            )
+            if over[:, ri].any():
+                any_over = True
+                ax_u.plot(
+                    xs[over[:, ri]],
+                    np.full(int(over[:, ri].sum()), u_ov),
+                    "x",
+                    ms=8,
+                    mew=1.6,
+                    color=color,
+                )
+            if other[:, ri].any():
+                any_other = True
+                ax_u.plot(
+                    xs[other[:, ri]], peak[other[:, ri], ri], "s", ms=7, mfc="none", color=color
+                )
+        frac = np.mean(over, axis=1)
+        ax_f.plot(xs, frac, styles[si % 4], marker="o", ms=4, color=f"C{si % 10}", label=lab_s)
+    levels = {}  # one dashed line per distinct u_overturn
+    for u_ov, lab_s in zip(u_overturn, structures):
+        key = next((k for k in levels if math.isclose(k, float(u_ov), rel_tol=1e-9)), None)
+        levels.setdefault(float(u_ov) if key is None else key, []).append(lab_s)
+    for u_ov, labs in levels.items():
+        label = "u_overturn" if len(levels) == 1 else f"u_overturn ({', '.join(labs)})"
+        ax_u.axhline(1e3 * u_ov, color="0.45", lw=0.9, ls=(0, (5, 3)), label=label)
+    handles, labels = ax_u.get_legend_handles_labels()
+    if any_over:
+        handles.append(ax_u.plot([], [], "x", color="k", ms=8, mew=1.6)[0])
+        labels.append("overturned (at u_overturn)")
+    if any_other:
+        handles.append(ax_u.plot([], [], "s", color="k", ms=7, mfc="none")[0])
+        labels.append("max_impacts / solver_failure")
+    if n_lines <= 24:
+        ax_u.legend(handles, labels, fontsize=7, ncol=2 if len(labels) > 6 else 1, loc="upper left")
+    ax_u.set_ylabel("peak |u| [mm]")
+    ax_u.set_title(title or "peak displacement against scale", fontsize=10)
+    ax_f.set_ylim(-0.03, 1.03)
+    ax_f.set_ylabel(f"fraction overturned\n(over {len(records)} record(s))")
+    ax_f.set_xlabel("scale factor on the records")
+    if many:
+        ax_f.legend(fontsize=8)
+    for ax in (ax_u, ax_f):
+        ax.grid(alpha=0.3)
+    return fig
+
+
+SWEEP_COLUMNS = (
+    "structure",
+    "record",
+    "scale",
+    "peak_u_m",
+    "peak_uplift_m",
+    "n_impacts",
+    "status",
+    "t_overturn_s",
+)
+
+
+def cmd_sweep(args):
+    """structures x scales x records through `simulate_batch(summary_only=True)`: CSV, plot."""
+    import csv
+    import time
+
+    import numpy as np
+
+    from ._batch import simulate_batch
+    from ._response import STATUS, STATUS_NAMES
+
+    _check_png(args.plot)
+    if args.r is not None and not 0.0 <= args.r <= 1.0:
+        raise CLIError(f"--r must lie in [0, 1], got {args.r}")
+    _check_out_dir("--out", args.out)
+    _check_out_dir("--plot", args.plot)
+    struct_paths = args.structure or [None]
+    structures = []
+    for path in struct_paths:
+        try:
+            structures.append(_load_structure(path))
+        except (ValueError, OSError) as e:
+            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise CLIError(f"--structure: {msg}") from None
+    struct_labels = ["table1"] if args.structure is None else _unique_labels(args.structure)
+    units = {"m/s2": "m/s2", "g": "g", None: None}[args.units]
+    gm = _sweep_records(args.record, units, args.record_dt)
+    rec_labels = _unique_labels(args.record)
+    t1 = args.t1 if args.t1 is not None else float(gm.duration)
+    scales = np.asarray(args.scales, float)
+    n_s, n_r = len(scales), len(args.record)
+    scale_b = np.repeat(scales, n_r)  # scale-major: run k is scale k // n_r, record k % n_r
+    record_b = np.tile(np.arange(n_r), n_s)
+    results = []
+    t0 = time.perf_counter()
+    for s in structures:
+        out = simulate_batch(
+            s,
+            gm,
+            t1,
+            scale=scale_b,
+            record=record_b,
+            r=args.r,
+            model=args.model,
+            impact=args.impact,
+            method=args.method,
+            substeps=args.substeps,
+            summary_only=True,
+            progress=not args.json,
+        )
+        results.append(
+            {
+                k: np.asarray(getattr(out, k)).reshape(n_s, n_r)
+                for k in ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn")
+            }
+        )
+    wall = time.perf_counter() - t0
+    n_runs = len(structures) * n_s * n_r
+    runs = f"{n_runs} run{'s' if n_runs != 1 else ''}"
+
+    with open(args.out, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(SWEEP_COLUMNS)
+        for lab_s, res in zip(struct_labels, results):
+            for i in range(n_s):
+                for j in range(n_r):
+                    t_ov = float(res["t_overturn"][i, j])
+                    w.writerow(
+                        [
+                            lab_s,
+                            rec_labels[j],
+                            repr(float(scales[i])),
+                            repr(float(res["peak_u"][i, j])),
+                            repr(float(res["peak_uplift"][i, j])),
+                            int(res["n_impacts"][i, j]),
+                            STATUS_NAMES[int(res["status"][i, j])],
+                            repr(t_ov) if math.isfinite(t_ov) else "",
+                        ]
+                    )
+    counts = {name: 0 for name in STATUS}
+    for res in results:
+        for code in res["status"].ravel():
+            counts[STATUS_NAMES[int(code)]] += 1
+    fractions = {
+        lab: [float(x) for x in np.mean(res["status"] == STATUS["overturned"], axis=1)]
+        for lab, res in zip(struct_labels, results)
+    }
+    if args.plot:
+        fig = plot_sweep(
+            scales,
+            results,
+            u_overturn=[float(s.u_overturn) for s in structures],
+            structures=struct_labels,
+            records=rec_labels,
+            title=f"{runs} to t1 = {t1:g} s, {args.model} model, {args.method}",
+        )
+        fig.savefig(args.plot, dpi=150)
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "n_runs": n_runs,
+                    "n_structures": len(structures),
+                    "n_records": n_r,
+                    "n_scales": n_s,
+                    "status_counts": counts,
+                    "wall_time_s": wall,
+                    "runs_per_s": n_runs / wall if wall > 0 else None,
+                    "t1": t1,
+                    "model": args.model,
+                    "method": args.method,
+                    "csv": str(args.out),
+                    "plot": args.plot,
+                    "structures": struct_labels,
+                    "records": rec_labels,
+                    "scales": [float(x) for x in scales],
+                    "fraction_overturned": fractions,
+                }
+            )
+        )
+        return 0
+    n_over = counts["overturned"]
+    print(
+        f"sweep         {runs}: {len(structures)} structure(s) x {n_r} record(s) x "
+        f"{n_s} scale(s), t1 = {t1:g} s, {args.model} model, {args.method}"
+        + (f" ({args.substeps} substeps)" if args.method == "rk4" else "")
+    )
+    print(f"time          {wall:.3g} s ({n_runs / wall:.3g} runs/s, compilation included)")
+    print("status        " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    print(f"overturned    {n_over} of {n_runs} ({n_over / n_runs:.1%})")
+    width = max(8, *(len(lab) + 2 for lab in struct_labels))
+    print(
+        f"fraction overturned by scale:\n{'scale':>10}"
+        + "".join(f"{lab:>{width}}" for lab in struct_labels)
+    )
+    shown = range(n_s) if n_s <= 25 else [*range(12), None, *range(n_s - 12, n_s)]
+    for i in shown:
+        if i is None:
+            print(f"{'...':>10}")
+            continue
+        print(
+            f"{scales[i]:>10.4g}"
+            + "".join(f"{fractions[lab][i]:>{width}.3f}" for lab in struct_labels)
+        )
+    print(f"results written to {args.out}")
+    if args.plot:
+        print(f"plot written to {args.plot}")
+    return 0
 
 
 # -------------------------------------------------------------------------- demo
@@ -410,7 +785,10 @@ def cmd_demo(args):
     free = simulate(s, FreeVibration(0.10), 4.0, ts=ts)
     free_exact = simulate(s, FreeVibration(0.10), 4.0, ts=ts, model="exact")
     fig = plot_response(
-        s, free, label="simplified", overlay=[("exact", free_exact)],
+        s,
+        free,
+        label="simplified",
+        overlay=[("exact", free_exact)],
         title=f"Free vibration from u0 = 0.10 m, r = {d['restitution']:.3f} (Eq 3), cf. Fig 9",
     )
     written.append(out / "free_vibration.png")
@@ -431,8 +809,10 @@ def cmd_demo(args):
         (name[:33], quake),
     ):
         sm = res.summary()
-        print(f"{label:<34}{1e3 * sm['peak_u']:>14.2f}{1e3 * sm['peak_uplift']:>18.2f}"
-              f"{sm['n_impacts']:>9d}  {sm['status']}")
+        print(
+            f"{label:<34}{1e3 * sm['peak_u']:>14.2f}{1e3 * sm['peak_uplift']:>18.2f}"
+            f"{sm['n_impacts']:>9d}  {sm['status']}"
+        )
 
     # identification: fit k_f and r to the SYNTHETIC noisy decay trace shipped with rockjax
     import identification
@@ -442,10 +822,13 @@ def cmd_demo(args):
     truth = identification.synthetic_truth(name_tr)
     # u0 is fitted too: the first measured sample carries the noise, and holding u0 there
     # would bias k_f and r (see README, identification)
-    fit = _fit_trace(trace, s, ("k_f", "r", "u0"), model=truth.get("model", "simplified"),
-                     progress=False)
+    fit = _fit_trace(
+        trace, s, ("k_f", "r", "u0"), model=truth.get("model", "simplified"), progress=False
+    )
     fig = plot_fit(
-        trace, fit, measured_label="SYNTHETIC measured trace",
+        trace,
+        fit,
+        measured_label="SYNTHETIC measured trace",
         title=f"Identification of k_f and r from {name_tr} (SYNTHETIC: true k_f = "
         f"{truth['k_f']:.4g} N/m, r = {truth['r']:.3g}), started from Table 1",
     )
@@ -453,10 +836,12 @@ def cmd_demo(args):
     fig.savefig(written[-1], dpi=150)
     print()
     # (lower-case "synthetic" here: "SYNTHETIC" on stdout flags the ground-motion fallback)
-    print(f"identification: fit of k_f, r (and u0) to the synthetic decay trace {name_tr} "
-          f"(a rockjax simulation with noise, not a measurement; {trace.n} samples, "
-          f"{trace.duration:.3g} s), started from Table 1 (k_f = {float(s.k_f):.4g} N/m, "
-          f"r = {float(s.restitution):.3f} from Eq 3)")
+    print(
+        f"identification: fit of k_f, r (and u0) to the synthetic decay trace {name_tr} "
+        f"(a rockjax simulation with noise, not a measurement; {trace.n} samples, "
+        f"{trace.duration:.3g} s), started from Table 1 (k_f = {float(s.k_f):.4g} N/m, "
+        f"r = {float(s.restitution):.3f} from Eq 3)"
+    )
     print(_fit_value_table(fit, truth=truth))
     for line in _fit_stats_lines(fit):
         print(line)
@@ -509,22 +894,51 @@ def build_parser():
     )
     m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
     m.add_argument("--u0", type=_finite_float("--u0"), metavar="M", help="release displacement [m]")
-    m.add_argument("--v0", type=_finite_float("--v0"), default=0.0, metavar="V",
-                   help="release velocity [m/s] (default 0)")
+    m.add_argument(
+        "--v0",
+        type=_finite_float("--v0"),
+        default=0.0,
+        metavar="V",
+        help="release velocity [m/s] (default 0)",
+    )
     m.add_argument("--record", metavar="FILE", help="ground-motion record file")
     m.add_argument("--units", choices=["g", "m/s2"], help="units of the record's values")
-    m.add_argument("--scale", type=_finite_float("--scale"), default=1.0,
-                   help="scale factor on the record (default 1)")
-    m.add_argument("--record-dt", type=_positive_float("--record-dt"), metavar="DT",
-                   help="sample step [s] of a one-column record")
-    m.add_argument("--t1", type=_positive_float("--t1"), metavar="T",
-                   help="end time [s] (default: 4 s, or the record's length)")
-    m.add_argument("--model", choices=["simplified", "exact", "smooth", "housner"],
-                   default="simplified", help="restoring-force model (default simplified)")
-    m.add_argument("--r", type=_finite_float("--r"), metavar="R",
-                   help="coefficient of restitution in [0, 1] (default: Eq 3)")
-    m.add_argument("--impact", choices=["paper", "after_uplift"], default="paper",
-                   help="impact rule (default paper: every crossing of u = 0)")
+    m.add_argument(
+        "--scale",
+        type=_finite_float("--scale"),
+        default=1.0,
+        help="scale factor on the record (default 1)",
+    )
+    m.add_argument(
+        "--record-dt",
+        type=_positive_float("--record-dt"),
+        metavar="DT",
+        help="sample step [s] of a one-column record",
+    )
+    m.add_argument(
+        "--t1",
+        type=_positive_float("--t1"),
+        metavar="T",
+        help="end time [s] (default: 4 s, or the record's length)",
+    )
+    m.add_argument(
+        "--model",
+        choices=["simplified", "exact", "smooth", "housner"],
+        default="simplified",
+        help="restoring-force model (default simplified)",
+    )
+    m.add_argument(
+        "--r",
+        type=_finite_float("--r"),
+        metavar="R",
+        help="coefficient of restitution in [0, 1] (default: Eq 3)",
+    )
+    m.add_argument(
+        "--impact",
+        choices=["paper", "after_uplift"],
+        default="paper",
+        help="impact rule (default paper: every crossing of u = 0)",
+    )
     m.add_argument("--out", metavar="FILE.csv", help="write t, u, v, theta, uplift as CSV")
     m.add_argument("--plot", metavar="FILE.png", help="write a Fig 9/10-style plot")
     m.add_argument("--json", action="store_true", help="print a JSON summary and nothing else")
@@ -541,19 +955,129 @@ def build_parser():
         "correlation and identifiability warnings.",
     )
     f.add_argument("trace", metavar="TRACE.csv", help="decay trace (t,u[,uplift])")
-    f.add_argument("--structure", metavar="FILE.toml",
-                   help="structure file (default: Table 1); its k_f and Eq 3 r are the start")
-    f.add_argument("--params", nargs="+", choices=["k_f", "r", "u0", "t0"],
-                   default=["k_f", "r"], metavar="P",
-                   help="parameters to fit, from k_f r u0 t0 (default: k_f r)")
-    f.add_argument("--model", choices=["simplified", "exact", "smooth", "housner"],
-                   default="simplified", help="restoring-force model (default simplified)")
-    f.add_argument("--starts", type=_starts, metavar="N",
-                   help="number of optimiser starts, run in parallel (default: fit_decay's)")
-    f.add_argument("--plot", metavar="FILE.png",
-                   help="write measured vs fitted traces and residuals")
+    f.add_argument(
+        "--structure",
+        metavar="FILE.toml",
+        help="structure file (default: Table 1); its k_f and Eq 3 r are the start",
+    )
+    f.add_argument(
+        "--params",
+        nargs="+",
+        choices=["k_f", "r", "u0", "t0"],
+        default=["k_f", "r"],
+        metavar="P",
+        help="parameters to fit, from k_f r u0 t0 (default: k_f r)",
+    )
+    f.add_argument(
+        "--model",
+        choices=["simplified", "exact", "smooth", "housner"],
+        default="simplified",
+        help="restoring-force model (default simplified)",
+    )
+    f.add_argument(
+        "--starts",
+        type=_starts,
+        metavar="N",
+        help="number of optimiser starts, run in parallel (default: fit_decay's)",
+    )
+    f.add_argument(
+        "--plot", metavar="FILE.png", help="write measured vs fitted traces and residuals"
+    )
     f.add_argument("--json", action="store_true", help="print one JSON object and nothing else")
     f.set_defaults(func=cmd_fit)
+
+    w = sub.add_parser(
+        "sweep",
+        help="peak responses over structures x scale factors x records (CSV and plot)",
+        description="Run every combination of structure, scale factor and ground-motion "
+        "record with the fast batched integrator (rockjax.simulate_batch, summaries only) "
+        "and write one CSV row per run: structure, record, scale, peak_u_m, peak_uplift_m, "
+        "n_impacts, status, t_overturn_s. The records (PEER AT2, two columns t a, or one "
+        "column with --record-dt) must share one time step; shorter ones are padded with "
+        "zeros.",
+    )
+    w.add_argument(
+        "--structure",
+        action="append",
+        metavar="FILE.toml",
+        help="structure file, repeatable (default: Table 1)",
+    )
+    w.add_argument(
+        "--record",
+        action="append",
+        required=True,
+        metavar="FILE",
+        help="ground-motion record file, repeatable (at least one)",
+    )
+    w.add_argument("--units", choices=["g", "m/s2"], help="units of the records' values")
+    w.add_argument(
+        "--record-dt",
+        type=_positive_float("--record-dt"),
+        metavar="DT",
+        help="sample step [s] of one-column records",
+    )
+    w.add_argument(
+        "--scales",
+        type=_scales,
+        default=[1.0],
+        metavar="LIST|START:STOP:N",
+        help='scale factors: a comma list such as "0.5,1,1.5" or a range '
+        '"START:STOP:N" of N evenly spaced values, ends included (default 1)',
+    )
+    w.add_argument(
+        "--t1",
+        type=_positive_float("--t1"),
+        metavar="T",
+        help="end time [s] (default: the longest record's length)",
+    )
+    w.add_argument(
+        "--model",
+        choices=["simplified", "exact", "smooth", "housner"],
+        default="simplified",
+        help="restoring-force model (default simplified)",
+    )
+    w.add_argument(
+        "--method",
+        choices=["rk4", "dopri5", "diffrax"],
+        default="rk4",
+        help="integrator (default rk4, the fast fixed-step path)",
+    )
+    w.add_argument(
+        "--substeps",
+        type=_positive_int("--substeps"),
+        default=2,
+        metavar="N",
+        help="RK4 steps per record interval (default 2)",
+    )
+    w.add_argument(
+        "--r",
+        type=_finite_float("--r"),
+        metavar="R",
+        help="coefficient of restitution in [0, 1] (default: Eq 3)",
+    )
+    w.add_argument(
+        "--impact",
+        choices=["paper", "after_uplift"],
+        default="paper",
+        help="impact rule (default paper: every crossing of u = 0)",
+    )
+    w.add_argument(
+        "--out",
+        default="sweep.csv",
+        metavar="FILE.csv",
+        help="CSV of the summaries (default ./sweep.csv)",
+    )
+    w.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="plot peak |u| and the fraction overturned against the scale",
+    )
+    w.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object and nothing else (no progress bar)",
+    )
+    w.set_defaults(func=cmd_sweep)
     return p
 
 

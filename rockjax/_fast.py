@@ -322,13 +322,15 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
         if cfg.method == "fixed":
             # a fixed number of pieces (reverse-mode differentiable), each skipped when no
             # member needs it; the last one integrates what is left without events
-            for _ in range(cfg.max_pieces):
-                st, tau = jax.lax.cond(
-                    jnp.any(~st["done"] & (tau < L)),
+            def one_piece(x, _):
+                return jax.lax.cond(
+                    jnp.any(~x[0]["done"] & (x[1] < L)),
                     lambda x: piece(x[0], L, t_start, a0, da, x[1]),
                     lambda x: x,
-                    (st, tau),
-                )
+                    x,
+                ), None
+
+            (st, tau), _ = jax.lax.scan(one_piece, (st, tau), None, length=cfg.max_pieces)
 
             def finish(x):
                 st, tau = x
@@ -374,10 +376,17 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
             a_hi = table[rec, jnp.minimum(k + 1, n_rec - 1)] * scale
             a_hi = jnp.where(k + 1 <= n_rec - 1, a_hi, 0.0)
         slope = (a_hi - a_lo) / dt_rec
-        for j in range(sub):
-            ts_j = t0 + j * hk / sub
-            L = hk / sub
-            st = substep(st, ts_j, L, a_lo + slope * (j * L), a_lo + slope * ((j + 1) * L))
+        L = hk / sub
+
+        def sub_body(st, j):
+            j = j.astype(dtype)
+            return substep(st, t0 + j * L, L, a_lo + slope * (j * L),
+                           a_lo + slope * ((j + 1) * L)), None
+
+        if sub == 1:
+            st, _ = sub_body(st, jnp.zeros((), jnp.int32))
+        else:
+            st, _ = jax.lax.scan(sub_body, st, jnp.arange(sub))
         out = (st["u"], st["v"]) if cfg.full else None
         return st, out
 

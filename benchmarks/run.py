@@ -1,0 +1,439 @@
+"""All of rockjax's speed and accuracy figures, measured side by side in one run.
+
+    python benchmarks/run.py [--record PATH] [--quick]
+
+Writes benchmarks/results.md and benchmarks/pareto.png (and prints the tables):
+
+(a) one El Centro run (IELC180, x1.0, 40 s, Table 1 column, full time history): rockjax
+    "diffrax", "dopri5" and "rk4" against scipy `solve_ivp` event-restart baselines (RK45
+    and DOP853, the independent implementation in tests/test_reference_scipy.py);
+(b) batches of 1,000 and 10,000 El Centro runs (scales 0.1-2.0), summary only;
+(c) the speed/accuracy trade: peak-u error and RMS error of u(t) against a tight reference,
+    against time per run, for several methods and settings, the models simplified / exact /
+    smooth, and float32 against float64 (the Pareto plot);
+(d) the gradient cost of the identification loss (value_and_grad / value);
+(e) compile times and peak memory (each in a fresh process).
+
+All on the CPU. JAX sees one device per core (XLA_FLAGS=--xla_force_host_platform_device_count
+is set to the core count unless XLA_FLAGS is already set), and batches are split over them.
+The tight references: scipy DOP853 at rtol 1e-12 (simplified model) and rockjax "diffrax" at
+rtol 1e-12 (exact and smooth models, which the scipy reference does not implement).
+"""
+
+from __future__ import annotations
+
+import os
+
+if "XLA_FLAGS" not in os.environ:
+    os.environ["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={os.cpu_count() or 1}"
+
+import argparse  # noqa: E402
+import importlib.util  # noqa: E402
+import json  # noqa: E402
+import pathlib  # noqa: E402
+import platform  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+import rockjax  # noqa: E402
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+HERE = pathlib.Path(__file__).resolve().parent
+T1 = 40.0
+
+
+def _load_reference():
+    path = REPO / "tests" / "test_reference_scipy.py"
+    spec = importlib.util.spec_from_file_location("_rockjax_scipy_reference", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def timed(fn, repeats=5, slow=1.0):
+    """(compile-or-first call [s], median of the next calls [s], result)."""
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn())
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(1 if first > slow * 3 else repeats):
+        t0 = time.perf_counter()
+        out = jax.block_until_ready(fn())
+        times.append(time.perf_counter() - t0)
+    return first, statistics.median(times), out
+
+
+def errors(u, peak, ref_u, ref_peak):
+    u = np.asarray(u, float)
+    return (
+        abs(float(peak) - ref_peak) / ref_peak,
+        float(np.sqrt(np.mean((u - ref_u) ** 2))) / ref_peak,
+    )
+
+
+def single_runs(s, gm, ref_mod, dt, accel, quick):
+    """(a) and the simplified-model part of (c)."""
+    fields = {k: float(v) for k, v in s.to_dict().items()}
+    ts = np.arange(int(round(T1 / dt)) + 1) * dt
+    print("tight scipy reference (DOP853, rtol 1e-12) ...", flush=True)
+    t0 = time.perf_counter()
+    ref = ref_mod.reference_simulate(fields, T1, dt=dt, accel=accel)
+    t_ref = time.perf_counter() - t0
+    ref_u = ref.u_at(ts)
+    rows = []
+
+    def add(name, method, setting, first, t_run, u, peak, n_imp, dtype="float64",
+            model="simplified", compile_s=None):
+        e_peak, e_rms = errors(u, peak, ref_u, ref.peak_u)
+        rows.append(dict(name=name, method=method, setting=setting, model=model, dtype=dtype,
+                         time_s=t_run, compile_s=compile_s if compile_s is not None else
+                         max(first - t_run, 0.0), peak_err=e_peak, rms_err=e_rms,
+                         n_impacts=int(n_imp)))
+        print(f"  {name:28s} {t_run * 1e3:10.2f} ms  peak err {e_peak:.1e}  rms {e_rms:.1e}  "
+              f"impacts {int(n_imp)}", flush=True)
+
+    rtols = (1e-6, 1e-8) if quick else (1e-6, 1e-8, 1e-10)
+    for method in ("RK45", "DOP853"):
+        for rtol in rtols:
+            first, t_run, res = timed(
+                lambda m=method, r=rtol: ref_mod.reference_simulate(
+                    fields, T1, dt=dt, accel=accel, rtol=r, atol=r * 1e-2, method=m),
+                repeats=3,
+            )
+            add(f"scipy {method} rtol {rtol:.0e}", f"scipy {method}", f"rtol {rtol:.0e}", first,
+                t_run, res.u_at(ts), res.peak_u, res.n_impacts, compile_s=0.0)
+    for rtol in rtols:
+        first, t_run, res = timed(lambda r=rtol: rockjax.simulate(s, gm, T1, rtol=r,
+                                                                  atol=r * 1e-2))
+        add(f"rockjax diffrax rtol {rtol:.0e}", "diffrax", f"rtol {rtol:.0e}", first, t_run,
+            res.u, res.peak_u, res.n_impacts)
+    for rtol in (1e-5, 1e-7, 1e-9) if quick else (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+        first, t_run, res = timed(lambda r=rtol: rockjax.simulate(
+            s, gm, T1, method="dopri5", rtol=r, atol=r * 1e-2))
+        add(f"rockjax dopri5 rtol {rtol:.0e}", "dopri5", f"rtol {rtol:.0e}", first, t_run,
+            res.u, res.peak_u, res.n_impacts)
+    for sub in (1, 2, 4, 8):
+        first, t_run, res = timed(lambda n=sub: rockjax.simulate(s, gm, T1, method="rk4",
+                                                                 substeps=n))
+        add(f"rockjax rk4 substeps {sub}", "rk4", f"substeps {sub}", first, t_run, res.u,
+            res.peak_u, res.n_impacts)
+    s32 = s.astype(jnp.float32)
+    gm32 = rockjax.GroundMotion(dt=jnp.float32(dt), accel=jnp.asarray(gm.accel, jnp.float32))
+    for sub in (1, 2, 4):
+        first, t_run, res = timed(lambda n=sub: rockjax.simulate(s32, gm32, T1, method="rk4",
+                                                                 substeps=n))
+        add(f"rockjax rk4 substeps {sub} f32", "rk4 float32", f"substeps {sub}", first, t_run,
+            res.u, res.peak_u, res.n_impacts, dtype="float32")
+    first, t_run, res = timed(lambda: rockjax.simulate(s32, gm32, T1, method="dopri5",
+                                                       rtol=1e-6, atol=1e-8))
+    add("rockjax dopri5 rtol 1e-06 f32", "dopri5 float32", "rtol 1e-06", first, t_run, res.u,
+        res.peak_u, res.n_impacts, dtype="float32")
+    return rows, dict(t_ref=t_ref, peak_u=ref.peak_u, n_impacts=ref.n_impacts)
+
+
+def other_models(s, gm):
+    """(c) for the exact and smooth models, against a tight diffrax reference of each."""
+    rows = []
+    for model in ("exact", "smooth"):
+        ref = rockjax.simulate(s, gm, T1, model=model, rtol=1e-12, atol=1e-14)
+        ref_u = np.asarray(ref.u)
+        ref_peak = float(ref.peak_u)
+        runs = [(f"rk4 substeps {n}", "rk4", dict(method="rk4", substeps=n)) for n in (1, 2, 4)]
+        runs += [("dopri5 rtol 1e-08", "dopri5", dict(method="dopri5", rtol=1e-8, atol=1e-10)),
+                 ("diffrax rtol 1e-08", "diffrax", dict(rtol=1e-8, atol=1e-10))]
+        for setting, method, kw in runs:
+            first, t_run, res = timed(lambda k=kw: rockjax.simulate(s, gm, T1, model=model, **k))
+            e_peak, e_rms = errors(res.u, res.peak_u, ref_u, ref_peak)
+            rows.append(dict(name=f"rockjax {setting} ({model})", method=method, setting=setting,
+                             model=model, dtype="float64", time_s=t_run,
+                             compile_s=max(first - t_run, 0.0), peak_err=e_peak, rms_err=e_rms,
+                             n_impacts=int(res.n_impacts)))
+            print(f"  {model:8s} {setting:20s} {t_run * 1e3:10.2f} ms  peak err {e_peak:.1e}  "
+                  f"rms {e_rms:.1e}", flush=True)
+    return rows
+
+
+def batches(s, gm, sizes, substeps):
+    """(b): summary-only batches over scales 0.1-2.0, and their accuracy on a subsample."""
+    out = []
+    for n in sizes:
+        scales = np.linspace(0.1, 2.0, n)
+        t0 = time.perf_counter()
+        rockjax.simulate_batch(s, gm, T1, scale=scales, summary_only=True, substeps=substeps,
+                               chunk_size=n, progress=False)
+        first = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res = rockjax.simulate_batch(s, gm, T1, scale=scales, summary_only=True,
+                                     substeps=substeps, chunk_size=n, progress=False)
+        wall = time.perf_counter() - t0
+        out.append(dict(n=n, substeps=substeps, wall_s=wall, compile_s=max(first - wall, 0.0),
+                        per_run_s=wall / n, runs_per_s=n / wall,
+                        overturned=int(np.sum(np.asarray(res.status) == 1))))
+        print(f"  batch {n:6d} substeps {substeps}: {wall:.2f} s ({n / wall:.0f} runs/s), "
+              f"compile {max(first - wall, 0.0):.1f} s", flush=True)
+    # accuracy of the batch: a subsample against tight diffrax references
+    sub = np.linspace(0.1, 2.0, sizes[-1])[:: max(1, sizes[-1] // 24)]
+    fast = rockjax.simulate_batch(s, gm, T1, scale=sub, summary_only=True, substeps=substeps,
+                                  progress=False)
+    tight = rockjax.simulate_batch(s, gm, T1, scale=sub, summary_only=True, method="diffrax",
+                                   rtol=1e-12, atol=1e-14, progress=False)
+    ok = np.asarray(tight.status) == 0
+    err = np.abs(np.asarray(fast.peak_u) / np.asarray(tight.peak_u) - 1)
+    dt_ot = np.abs(np.asarray(fast.t_overturn)[~ok] - np.asarray(tight.t_overturn)[~ok])
+    acc = dict(n_checked=len(sub), n_completed=int(ok.sum()),
+               status_agree=int(np.sum(np.asarray(fast.status) == np.asarray(tight.status))),
+               max_peak_err=float(err[ok].max()), median_peak_err=float(np.median(err[ok])),
+               max_t_overturn_diff=float(dt_ot.max()) if dt_ot.size else 0.0)
+    print(f"  batch accuracy on {len(sub)} scales: max peak err {acc['max_peak_err']:.1e}, "
+          f"status agree {acc['status_agree']}/{len(sub)}", flush=True)
+    return out, acc
+
+
+def gradient_cost():
+    """(d): value, value_and_grad (reverse) and jacfwd of the identification loss."""
+    import identification
+
+    trace = identification.read_trace(identification.synthetic_trace_path("synthetic_decay_noisy"))
+    s = rockjax.mcmanus_column()
+    t = jnp.asarray(trace.t - trace.t[0])
+    u_meas = jnp.asarray(trace.u)
+    t1 = float(t[-1])
+    dt = float(np.median(np.diff(np.asarray(t))))
+    rows = []
+    for label, kw in (("diffrax (reverse adjoint)", dict()),
+                      ("rk4, dt = trace step", dict(method="rk4", dt=dt))):
+        def loss(p, kw=kw):
+            k_f, r, u0 = p
+            res = rockjax.simulate(s.replace(k_f=k_f), rockjax.FreeVibration(u0), t1, ts=t, r=r,
+                                   **kw)
+            return jnp.sum((res.u - u_meas) ** 2)
+
+        p0 = jnp.asarray([8.0e5, 0.85, 0.1])
+        f_val = jax.jit(loss)
+        f_vg = jax.jit(jax.value_and_grad(loss))
+        fkw = dict(kw, adjoint="forward") if not kw else kw  # diffrax: ForwardMode for jacfwd
+
+        def loss_f(p, kw=fkw):
+            return loss(p, kw)
+
+        f_fwd = jax.jit(lambda p: (loss_f(p), jax.jacfwd(loss_f)(p)))
+        c_v, t_v, _ = timed(lambda: f_val(p0))
+        c_g, t_g, _ = timed(lambda: f_vg(p0))
+        c_f, t_f, _ = timed(lambda: f_fwd(p0))
+        rows.append(dict(loss=label, value_s=t_v, value_and_grad_s=t_g, jacfwd_s=t_f,
+                         ratio_reverse=t_g / t_v, ratio_forward=t_f / t_v,
+                         compile_value_s=c_v - t_v, compile_grad_s=c_g - t_g))
+        print(f"  {label}: value {t_v * 1e3:.1f} ms, value_and_grad {t_g * 1e3:.1f} ms "
+              f"(x{t_g / t_v:.2f}), jacfwd {t_f * 1e3:.1f} ms (x{t_f / t_v:.2f})", flush=True)
+    return rows
+
+
+_MEM_SNIPPET = """
+import resource, sys, time, numpy as np, rockjax
+case = sys.argv[1]
+s = rockjax.mcmanus_column()
+gm = rockjax.GroundMotion.from_file(sys.argv[2], units="g")
+t0 = time.perf_counter()
+if case == "import":
+    pass
+elif case == "single dopri5":
+    rockjax.simulate(s, gm, 40.0, method="dopri5").u.block_until_ready()
+elif case == "single diffrax":
+    rockjax.simulate(s, gm, 40.0).u.block_until_ready()
+elif case == "10,000 summaries (rk4)":
+    rockjax.simulate_batch(s, gm, 40.0, scale=np.linspace(0.1, 2, 10000), summary_only=True,
+                           substeps=2, progress=False)
+elif case == "1,000 full histories (rk4)":
+    rockjax.simulate_batch(s, gm, 40.0, scale=np.linspace(0.1, 2, 1000), substeps=2,
+                           progress=False)
+print(time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def memory(record):
+    rows = []
+    for case in ("import", "single diffrax", "single dopri5", "10,000 summaries (rk4)",
+                 "1,000 full histories (rk4)"):
+        out = subprocess.run([sys.executable, "-c", _MEM_SNIPPET, case, str(record)],
+                             capture_output=True, text=True, check=True)
+        wall, rss = out.stdout.split()[-2:]
+        rows.append(dict(case=case, first_call_s=float(wall), peak_rss_mb=int(rss) / 1024))
+        print(f"  {case}: first call {float(wall):.2f} s, peak RSS {int(rss) / 1024:.0f} MB",
+              flush=True)
+    return rows
+
+
+def pareto_plot(rows, path):
+    from rockjax._plotting import new_figure
+
+    fig = new_figure(figsize=(11, 4.5))
+    axes = fig.subplots(1, 2)
+    styles = {"scipy RK45": ("s", "tab:gray"), "scipy DOP853": ("D", "k"),
+              "diffrax": ("o", "tab:blue"), "dopri5": ("^", "tab:green"),
+              "rk4": ("v", "tab:red"), "rk4 float32": ("x", "tab:orange"),
+              "dopri5 float32": ("+", "tab:olive")}
+    fills = {"simplified": None, "exact": "none", "smooth": "none"}
+    for ax, key, label in ((axes[0], "peak_err", "relative error of peak |u|"),
+                           (axes[1], "rms_err", "RMS error of u(t) / peak |u|")):
+        seen = set()
+        for r in rows:
+            marker, color = styles[r["method"]]
+            lab = r["method"] if r["model"] == "simplified" else f"{r['method']} ({r['model']})"
+            kw = dict(marker=marker, color=color, linestyle="none", ms=7)
+            if r["model"] != "simplified":
+                kw.update(mfc=fills[r["model"]], ms=10 if r["model"] == "exact" else 13)
+            ax.loglog(r["time_s"], max(r[key], 1e-16), label=None if lab in seen else lab, **kw)
+            seen.add(lab)
+        ax.set_xlabel("time per run [s] (El Centro, 40 s, full history)")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle("Speed against accuracy (Table 1 column, El Centro x1.0); lower left is better")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def fmt(x, spec):
+    return format(x, spec) if np.isfinite(x) else "-"
+
+
+def write_markdown(path, info, single, models, batch, batch_acc, grads, mem, ref):
+    L = []
+    L.append("# rockjax benchmark results\n")
+    L.append(f"Measured by `python benchmarks/run.py` on {info['date']}: {info['machine']}. "
+             "Regenerate them with the same command; every figure here comes from one run.\n")
+    L.append(f"Tight reference for the simplified model: scipy DOP853 rtol 1e-12 "
+             f"({ref['t_ref']:.1f} s; peak |u| = {ref['peak_u']:.10f} m, "
+             f"{ref['n_impacts']} impacts). Errors are relative to its peak |u|.\n")
+    L.append("## (a) One El Centro run (IELC180 x1.0, 40 s, full time history)\n")
+    L.append("| run | time per run [ms] | compile [s] | peak-u error | RMS error of u(t) | "
+             "impacts |")
+    L.append("|---|---|---|---|---|---|")
+    for r in single:
+        if r["dtype"] != "float64":
+            continue
+        L.append(f"| {r['name']} | {r['time_s'] * 1e3:.2f} | {r['compile_s']:.1f} | "
+                 f"{r['peak_err']:.1e} | {r['rms_err']:.1e} | {r['n_impacts']} |")
+    by = {r["name"]: r for r in single}
+    L.append("")
+    L.append("Speed-ups at the same tolerance (rockjax dopri5 and scipy RK45 are the same "
+             "Dormand–Prince 5(4) pair; DOP853 is scipy's fastest method here):\n")
+    L.append("| rtol | dopri5 [ms] | scipy RK45 [ms] | speed-up | scipy DOP853 [ms] | speed-up |")
+    L.append("|---|---|---|---|---|---|")
+    for rt in ("1e-06", "1e-08", "1e-10"):
+        d = by.get(f"rockjax dopri5 rtol {rt}")
+        a = by.get(f"scipy RK45 rtol {rt}")
+        b = by.get(f"scipy DOP853 rtol {rt}")
+        if d and a and b:
+            L.append(f"| {rt} | {d['time_s'] * 1e3:.1f} | {a['time_s'] * 1e3:.0f} | "
+                     f"{a['time_s'] / d['time_s']:.0f}x | {b['time_s'] * 1e3:.0f} | "
+                     f"{b['time_s'] / d['time_s']:.0f}x |")
+    L.append("\n## (b) Batches of El Centro runs, summary only\n")
+    L.append(f"Scales 0.1 to 2.0 (linspace), `rockjax.simulate_batch(..., summary_only=True, "
+             f"substeps={batch[0]['substeps']})` on {info['devices']} CPU device(s); compile "
+             "excluded (a first call of the same shape).\n")
+    L.append("| runs | wall [s] | runs per second | per run [ms] | compile [s] | overturned |")
+    L.append("|---|---|---|---|---|---|")
+    for b in batch:
+        L.append(f"| {b['n']:,} | {b['wall_s']:.2f} | {b['runs_per_s']:,.0f} | "
+                 f"{b['per_run_s'] * 1e3:.3f} | {b['compile_s']:.1f} | {b['overturned']:,} |")
+    L.append("")
+    L.append(f"Accuracy of these batch settings on {batch_acc['n_checked']} of the scales, "
+             f"against rockjax diffrax at rtol 1e-12: peak-u error max "
+             f"{batch_acc['max_peak_err']:.1e}, median {batch_acc['median_peak_err']:.1e} over "
+             f"the {batch_acc['n_completed']} runs that complete; status agrees in "
+             f"{batch_acc['status_agree']}/{batch_acc['n_checked']}; overturning times agree to "
+             f"{batch_acc['max_t_overturn_diff']:.1e} s.\n")
+    # scipy per-run time at the same accuracy
+    scipy_ok = [r for r in single if r["method"].startswith("scipy")
+                and r["peak_err"] <= batch_acc["max_peak_err"]]
+    if scipy_ok:
+        best = min(scipy_ok, key=lambda r: r["time_s"])
+        per = batch[-1]["per_run_s"]
+        L.append(f"The cheapest scipy baseline at least as accurate ({best['name']}, peak error "
+                 f"{best['peak_err']:.1e}) takes {best['time_s']:.3f} s per run: the "
+                 f"{batch[-1]['n']:,}-run batch is **{best['time_s'] / per:,.0f}x** faster per "
+                 "run.\n")
+    L.append("## (c) Speed against accuracy\n")
+    L.append("![Pareto plot](pareto.png)\n")
+    L.append("| run | model | dtype | time per run [ms] | peak-u error | RMS error |")
+    L.append("|---|---|---|---|---|---|")
+    for r in single + models:
+        L.append(f"| {r['name']} | {r['model']} | {r['dtype']} | {r['time_s'] * 1e3:.2f} | "
+                 f"{r['peak_err']:.1e} | {r['rms_err']:.1e} |")
+    L.append("\nThe exact and smooth rows are measured against rockjax diffrax at rtol 1e-12 "
+             "with the same model.\n")
+    L.append("## (d) Gradient cost of the identification loss\n")
+    L.append("Loss: sum of squared residuals of u on the noisy synthetic decay trace (8 s, 200 "
+             "Hz) in (k_f, r, u0).\n")
+    L.append("| integrator | value [ms] | value_and_grad [ms] | ratio | value + jacfwd [ms] | "
+             "ratio | compile of grad [s] |")
+    L.append("|---|---|---|---|---|---|---|")
+    for g in grads:
+        L.append(f"| {g['loss']} | {g['value_s'] * 1e3:.1f} | {g['value_and_grad_s'] * 1e3:.1f}"
+                 f" | {g['ratio_reverse']:.2f} | {g['jacfwd_s'] * 1e3:.1f} | "
+                 f"{g['ratio_forward']:.2f} | {g['compile_grad_s']:.1f} |")
+    L.append("\n## (e) Compile time and peak memory\n")
+    L.append("Each case in a fresh Python process: the first call (tracing, compilation and one "
+             "run) and the process's peak resident memory.\n")
+    L.append("| case | first call [s] | peak RSS [MB] |")
+    L.append("|---|---|---|")
+    for m in mem:
+        L.append(f"| {m['case']} | {m['first_call_s']:.2f} | {m['peak_rss_mb']:.0f} |")
+    L.append("\nCompile times of the single runs are in table (a) (first call minus a later "
+             "call).\n")
+    path.write_text("\n".join(L) + "\n")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--record", default=str(REPO.parent / "shared" / "data" / "ground_motions"
+                                            / "IELC180.AT2"),
+                    help="El Centro IELC180 AT2 file (default: ../shared/data/ground_motions)")
+    ap.add_argument("--quick", action="store_true", help="fewer settings (a smoke run)")
+    ap.add_argument("--out", default=str(HERE), help="folder for results.md and pareto.png")
+    args = ap.parse_args(argv)
+    record = pathlib.Path(args.record)
+    if not record.is_file():
+        sys.exit(f"benchmarks/run.py: record not found: {record} (pass --record)")
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    ref_mod = _load_reference()
+    s = rockjax.mcmanus_column()
+    gm = rockjax.GroundMotion.from_file(record, units="g")
+    dt, accel = ref_mod.read_at2(record)
+    info = dict(
+        date=time.strftime("%Y-%m-%d"),
+        machine=f"{os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), "
+        f"jax {jax.__version__}, {len(jax.devices())} JAX CPU device(s), rockjax "
+        f"{rockjax.__version__}, float64 unless marked",
+        devices=len(jax.devices()),
+    )
+    print("(a)/(c) single runs", flush=True)
+    single, ref = single_runs(s, gm, ref_mod, dt, accel, args.quick)
+    print("(c) other models", flush=True)
+    models = other_models(s, gm)
+    print("(b) batches", flush=True)
+    batch, batch_acc = batches(s, gm, (1000,) if args.quick else (1000, 10000), substeps=2)
+    print("(d) gradient cost", flush=True)
+    grads = gradient_cost()
+    print("(e) memory", flush=True)
+    mem = memory(record)
+    pareto_plot(single + models, out / "pareto.png")
+    write_markdown(out / "results.md", info, single, models, batch, batch_acc, grads, mem, ref)
+    (out / "results.json").write_text(json.dumps(dict(info=info, single=single, models=models,
+                                                      batch=batch, batch_accuracy=batch_acc,
+                                                      gradients=grads, memory=mem, reference=ref),
+                                                 indent=1))
+    print(f"wrote {out / 'results.md'} and {out / 'pareto.png'}")
+
+
+if __name__ == "__main__":
+    main()

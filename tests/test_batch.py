@@ -1,0 +1,332 @@
+"""The fast path (method "rk4" / "dopri5") and simulate_batch: accuracy against the scipy
+reference, convergence order, batch == single run, chunking, sharding, gradients, errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_reference_scipy import read_at2, reference_simulate
+
+import rockjax
+from rockjax import FreeVibration, GroundMotion, simulate, simulate_batch
+
+T_EQ = 10.0  # El Centro window of these tests [s] (the strong motion is in it)
+
+
+def _fields(s):
+    return {k: float(v) for k, v in s.to_dict().items()}
+
+
+@pytest.fixture(scope="module")
+def record(ground_motions_dir):
+    dt, accel = read_at2(ground_motions_dir / "IELC180.AT2")
+    n = int(round(T_EQ / dt)) + 1
+    return dt, accel[:n]
+
+
+@pytest.fixture(scope="module")
+def gm(record):
+    dt, accel = record
+    return GroundMotion(dt=dt, accel=accel)  # read_at2 gives m/s²
+
+
+@pytest.fixture(scope="module")
+def eq_reference(column, record):
+    dt, accel = record
+    return reference_simulate(_fields(column), T_EQ, dt=dt, accel=accel)
+
+
+@pytest.fixture(scope="module")
+def free_reference(column):
+    return reference_simulate(_fields(column), 4.0, u0=0.10)
+
+
+# ----------------------------------------------------------------------------- accuracy
+
+
+def test_rk4_free_vibration_matches_scipy(column, free_reference):
+    res = simulate(column, FreeVibration(0.10), 4.0, method="rk4")  # dt = 1 ms
+    ref = free_reference
+    assert res.status_name == "completed"
+    assert int(res.n_impacts) == ref.n_impacts
+    np.testing.assert_allclose(res.impacts, ref.impacts, atol=1e-9)
+    assert float(np.max(np.abs(np.asarray(res.u) - ref.u_at(np.asarray(res.ts))))) < 1e-9
+
+
+def test_dopri5_free_vibration_matches_scipy(column, free_reference):
+    res = simulate(column, FreeVibration(0.10), 4.0, method="dopri5", rtol=1e-10, atol=1e-12)
+    ref = free_reference
+    assert int(res.n_impacts) == ref.n_impacts
+    np.testing.assert_allclose(res.impacts, ref.impacts, atol=1e-9)
+    assert float(np.max(np.abs(np.asarray(res.u) - ref.u_at(np.asarray(res.ts))))) < 1e-9
+
+
+@pytest.mark.parametrize("substeps, tol", [(1, 1e-4), (2, 1e-5)])
+def test_rk4_el_centro_peak_and_impacts(column, gm, eq_reference, substeps, tol):
+    res = simulate(column, gm, T_EQ, method="rk4", substeps=substeps)
+    ref = eq_reference
+    assert int(res.n_impacts) == ref.n_impacts
+    assert abs(float(res.peak_u) / ref.peak_u - 1) < tol
+    np.testing.assert_allclose(res.impacts, ref.impacts, atol=1e-4 / substeps**2)
+
+
+def test_rk4_converges_at_fourth_order(column, gm, eq_reference):
+    """Events located inside the step keep RK4's order although k(u) has kinks and jumps
+    (stepping over them blindly would give first or second order)."""
+    ref_u = eq_reference.u_at(np.arange(int(round(T_EQ / 0.01)) + 1) * 0.01)
+    errs = []
+    for n in (2, 4, 8):
+        res = simulate(column, gm, T_EQ, method="rk4", substeps=n)
+        errs.append(float(np.max(np.abs(np.asarray(res.u) - ref_u))))
+    rates = np.log2(np.asarray(errs[:-1]) / np.asarray(errs[1:]))
+    assert np.all(rates > 3.3), (errs, rates)
+
+
+def test_dopri5_el_centro_at_tolerance(column, gm, eq_reference):
+    res = simulate(column, gm, T_EQ, method="dopri5", rtol=1e-10, atol=1e-12)
+    assert int(res.n_impacts) == eq_reference.n_impacts
+    assert abs(float(res.peak_u) / eq_reference.peak_u - 1) < 1e-8
+
+
+def test_overturning_and_rest(column, gm):
+    big = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel, scale=2.0), T_EQ, method="rk4",
+                   substeps=2)
+    ref = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel, scale=2.0), T_EQ)
+    assert big.status_name == ref.status_name == "overturned"
+    assert float(big.t_overturn) == pytest.approx(float(ref.t_overturn), abs=1e-4)
+    assert np.all(np.isfinite(np.asarray(big.u)))
+    assert float(big.peak_u) == pytest.approx(float(column.u_overturn), rel=1e-12)
+    # r = 0: the first impact stops a free vibration for good
+    dead = simulate(column, FreeVibration(0.10), 2.0, r=0.0, method="rk4")
+    assert int(dead.n_impacts) == 1 and dead.status_name == "completed"
+    after = np.asarray(dead.ts) > float(dead.impacts[0]) + 1e-3
+    assert np.all(np.asarray(dead.u)[after] == 0.0)
+    # a release beyond u_overturn is an immediate overturned status, not an error
+    gone = simulate(column, FreeVibration(1.01 * float(column.u_overturn)), 1.0, method="rk4")
+    assert gone.status_name == "overturned" and float(gone.t_overturn) == 0.0
+
+
+def test_max_impacts_status(column):
+    res = simulate(column, FreeVibration(0.10), 4.0, method="rk4", max_impacts=5)
+    assert res.status_name == "max_impacts" and int(res.n_impacts) == 5
+
+
+@pytest.mark.parametrize("model", ["exact", "smooth", "housner"])
+def test_other_models_match_diffrax(column, model):
+    ref = simulate(column, FreeVibration(0.10), 2.0, model=model)
+    res = simulate(column, FreeVibration(0.10), 2.0, model=model, method="rk4")
+    assert int(res.n_impacts) == int(ref.n_impacts)
+    assert float(jnp.max(jnp.abs(res.u - ref.u))) < 1e-7
+    np.testing.assert_allclose(res.impacts, ref.impacts, atol=1e-7)
+
+
+def test_float32_runs_and_stays_close(column, gm):
+    s32 = column.astype(jnp.float32)
+    gm32 = GroundMotion(dt=jnp.float32(gm.dt), accel=jnp.asarray(gm.accel, jnp.float32))
+    r32 = simulate(s32, gm32, T_EQ, method="rk4", substeps=2)
+    r64 = simulate(column, gm, T_EQ, method="rk4", substeps=2)
+    assert r32.u.dtype == jnp.float32 and r32.peak_u.dtype == jnp.float32
+    assert np.all(np.isfinite(np.asarray(r32.u)))
+    assert int(r32.n_impacts) == int(r64.n_impacts)
+    assert abs(float(r32.peak_u) / float(r64.peak_u) - 1) < 1e-4
+
+
+# ----------------------------------------------------------------------------- batches
+
+
+@pytest.fixture(scope="module")
+def scales():
+    return np.array([0.3, 0.8, 1.0, 1.4, 2.0])
+
+
+@pytest.fixture(scope="module")
+def batch_full(column, gm, scales):
+    return simulate_batch(column, gm, T_EQ, scale=scales, substeps=2)
+
+
+def test_batch_equals_single_runs(column, gm, scales, batch_full):
+    b = batch_full
+    assert b.u.shape == (len(scales), int(round(T_EQ / 0.01)) + 1)
+    for i, sc in enumerate(scales):
+        one = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel, scale=sc), T_EQ,
+                       method="rk4", substeps=2)
+        assert int(b.status[i]) == int(one.status)
+        assert int(b.n_impacts[i]) == int(one.n_impacts)
+        # the same arithmetic, vectorised differently: rounding differences only, which the
+        # impacts amplify over a 10 s record
+        np.testing.assert_allclose(b.peak_u[i], one.peak_u, rtol=1e-7)
+        np.testing.assert_allclose(b.u[i], one.u, atol=1e-8)
+        n = int(b.n_impacts[i])
+        np.testing.assert_allclose(np.asarray(b.impact_times[i])[:n], one.impacts, atol=1e-8)
+
+
+def test_summary_only_equals_full(column, gm, scales, batch_full):
+    s = simulate_batch(column, gm, T_EQ, scale=scales, substeps=2, summary_only=True)
+    assert isinstance(s, rockjax.Summary) and len(s) == len(scales)
+    for name in ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn"):
+        np.testing.assert_array_equal(getattr(s, name), getattr(batch_full, name))
+    d = s.to_dict()
+    assert list(d["status"]) == s.status_names
+    assert s.status_names[-1] == "overturned" and s.status_names[0] == "completed"
+
+
+def test_diffrax_batch_equals_simulate(column, gm):
+    sc = np.array([0.5, 1.2])
+    b = simulate_batch(column, gm, 4.0, scale=sc, method="diffrax", summary_only=True,
+                       rtol=1e-10, atol=1e-12)
+    for i, x in enumerate(sc):
+        one = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel, scale=x), 4.0)
+        np.testing.assert_allclose(b.peak_u[i], one.peak_u, rtol=1e-9)
+        assert int(b.n_impacts[i]) == int(one.n_impacts)
+
+
+def test_chunks_padding_and_progress(column, gm, capsys):
+    sc = np.linspace(0.2, 1.2, 7)
+    whole = simulate_batch(column, gm, 3.0, scale=sc, summary_only=True)
+    parts = simulate_batch(column, gm, 3.0, scale=sc, summary_only=True, chunk_size=3,
+                           progress=True)
+    for name in ("peak_u", "n_impacts", "status"):
+        np.testing.assert_array_equal(getattr(whole, name), getattr(parts, name))
+    err = capsys.readouterr().err
+    assert "rk4 batch" in err and "/7" in err
+
+
+def test_batched_structures_records_and_initial_states(column, gm):
+    k_f = np.array([3e5, 5.5e5, 1e6])
+    b = simulate_batch(column.replace(k_f=k_f), FreeVibration(0.1), 2.0, r=np.array([0.6, 0.7,
+                                                                                     0.8]))
+    for i in range(3):
+        one = simulate(column.replace(k_f=k_f[i]), FreeVibration(0.1), 2.0, r=0.6 + 0.1 * i,
+                       method="rk4", dt=2.0 / 4000, ts=np.asarray(b.ts))
+        np.testing.assert_allclose(b.u[i], one.u, atol=1e-12)
+        assert int(b.n_impacts[i]) == int(one.n_impacts)
+    # two records of one dt, picked per run
+    acc = np.stack([np.asarray(gm.accel), -np.asarray(gm.accel)])
+    two = GroundMotion(dt=gm.dt, accel=acc)
+    out = simulate_batch(column, two, 4.0, record=np.array([0, 1, 0]), scale=np.array([1, 1, 2.0]),
+                         summary_only=True)
+    mirror = simulate_batch(column, GroundMotion(dt=gm.dt, accel=gm.accel), 4.0,
+                            scale=np.array([1.0, -1.0, 2.0]), summary_only=True)
+    np.testing.assert_allclose(out.peak_u, mirror.peak_u, rtol=1e-12)
+    # u0 batched on a free vibration
+    fv = simulate_batch(column, FreeVibration(0.0), 1.0, u0=np.array([0.02, 0.05]),
+                        summary_only=True)
+    np.testing.assert_allclose(fv.peak_u, [0.02, 0.05], rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(scale=np.ones(3), r=np.full(4, 0.5)), "same length"),
+        (dict(r=1.5), "r must lie in"),
+        (dict(r=np.array([0.5, -0.1])), "r must lie in"),
+        (dict(method="euler"), "method must be"),
+        (dict(impact="sometimes"), "impact must be"),
+        (dict(substeps=0), "substeps"),
+        (dict(record=np.array([0, 3])), "record must hold"),
+        (dict(dt=0.001), "dt applies to a free vibration"),
+        (dict(ts=np.array([0.0, 1.0]), summary_only=True), "ts applies"),
+        (dict(ts=np.array([1.0, 0.5])), "strictly increasing"),
+        (dict(scale=np.ones((2, 2))), "scale must be a scalar or a 1-D"),
+        (dict(u0=np.array([0.0, np.nan])), "u0 must be finite"),
+        (dict(chunk_size=0), "chunk_size"),
+        (dict(devices=99), "devices must be"),
+    ],
+)
+def test_bad_input_names_the_parameter(column, gm, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        simulate_batch(column, gm, 2.0, **kwargs)
+
+
+@pytest.mark.parametrize("t1", [0.0, -1.0, np.inf, np.nan])
+def test_bad_t1(column, gm, t1):
+    with pytest.raises(ValueError, match="t1 must be"):
+        simulate_batch(column, gm, t1)
+
+
+def test_sharded_over_four_devices_equals_one(tmp_path, gm):
+    """The batch split over 4 host devices (shard_map) gives the same results as 1 device."""
+    np.save(tmp_path / "acc.npy", np.asarray(gm.accel))
+    code = f"""
+import json, numpy as np, jax, rockjax
+gm = rockjax.GroundMotion(dt={float(gm.dt)!r}, accel=np.load({str(tmp_path / 'acc.npy')!r}))
+s = rockjax.mcmanus_column()
+sc = np.linspace(0.2, 2.0, 10)  # 10 runs over 4 devices: the chunk is padded to 12
+a = rockjax.simulate_batch(s, gm, 6.0, scale=sc, summary_only=True)
+b = rockjax.simulate_batch(s, gm, 6.0, scale=sc, summary_only=True, devices=1)
+u0 = np.linspace(0.01, 0.2, 10)
+fa = rockjax.simulate_batch(s, rockjax.FreeVibration(0.0), 3.0, u0=u0)
+fb = rockjax.simulate_batch(s, rockjax.FreeVibration(0.0), 3.0, u0=u0, devices=1)
+print(json.dumps(dict(n=len(jax.local_devices()), a=np.asarray(a.peak_u).tolist(),
+     b=np.asarray(b.peak_u).tolist(), sa=np.asarray(a.status).tolist(),
+     sb=np.asarray(b.status).tolist(), du=float(np.max(np.abs(fa.u - fb.u))),
+     na=np.asarray(fa.n_impacts).tolist(), nb=np.asarray(fb.n_impacts).tolist())))
+"""
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr
+    d = json.loads(out.stdout.strip().splitlines()[-1])
+    assert d["n"] == 4
+    # free vibration: identical to rounding
+    assert d["na"] == d["nb"] and d["du"] < 1e-12
+    # El Centro: rounding differences (vector widths differ) grow through the impacts
+    assert d["sa"] == d["sb"] and 1 in d["sa"]
+    np.testing.assert_allclose(d["a"], d["b"], rtol=1e-5)
+
+
+# ----------------------------------------------------------------------------- gradients
+
+
+def _fd5(f, x, h):
+    return (-f(x + 2 * h) + 8 * f(x + h) - 8 * f(x - h) + f(x - 2 * h)) / (12 * h)
+
+
+def test_rk4_gradients_match_finite_differences(column):
+    """jacrev == jacfwd == 5-point central differences (float64), through impacts."""
+    scale = jnp.asarray([5.5e5, 0.8, 0.1])  # k_f [N/m], r, u0 [m]
+    h = jnp.asarray([50.0, 1e-5, 1e-6])
+
+    def outputs(p):
+        res = simulate(column.replace(k_f=p[0]), FreeVibration(p[2]), 1.5, r=p[1],
+                       method="rk4", dt=2e-3)
+        return jnp.stack([jnp.sum(res.u**2), res.peak_u, res.impact_times[2]])
+
+    rev = jax.jacrev(outputs)(scale)
+    fwd = jax.jacfwd(outputs)(scale)
+    np.testing.assert_allclose(rev, fwd, rtol=1e-9, atol=1e-14)
+    for j in range(3):
+        e = jnp.zeros(3).at[j].set(1.0)
+        fd = _fd5(lambda x: outputs(scale + x * e), 0.0, h[j])
+        np.testing.assert_allclose(rev[:, j], fd, rtol=2e-6, atol=1e-12)
+
+
+def test_dopri5_forward_gradient(column):
+    def third_impact(k_f):
+        res = simulate(column.replace(k_f=k_f), FreeVibration(0.1), 1.5, method="dopri5",
+                       rtol=1e-10, atol=1e-12)
+        return res.impact_times[2]
+
+    g = jax.jacfwd(third_impact)(jnp.asarray(5.5e5))
+    fd = _fd5(third_impact, jnp.asarray(5.5e5), 50.0)
+    np.testing.assert_allclose(g, fd, rtol=1e-5)
+
+
+def test_rk4_el_centro_scale_gradient(column, gm):
+    def peak(sc):
+        res = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel[:401], scale=sc), 4.0,
+                       method="rk4")
+        return res.peak_u
+
+    g = jax.grad(peak)(jnp.asarray(1.0))
+    np.testing.assert_allclose(g, jax.jacfwd(peak)(jnp.asarray(1.0)), rtol=1e-6)
+    # below h ~ 1e-5 the difference quotient meets the rounding of the event locations
+    fd = _fd5(peak, jnp.asarray(1.0), 1e-4)
+    np.testing.assert_allclose(g, fd, rtol=1e-4)

@@ -1045,9 +1045,10 @@ def build_parser():
     w.add_argument(
         "--substeps",
         type=_positive_int("--substeps"),
-        default=2,
+        default=4,
         metavar="N",
-        help="RK4 steps per record interval (default 2)",
+        help="RK4 steps per record interval (default 4: peak |u| within about 2e-5 of a "
+        "tight reference on El Centro scaled 0.1-2; 2 is twice as fast, within 4e-4)",
     )
     w.add_argument(
         "--r",

@@ -40,6 +40,11 @@ class AbstractRestoringForce(eqx.Module):
         return False
 
     @property
+    def two_dof(self) -> bool:
+        """True for the 2-DOF rigid-body model, which `simulate` integrates as such."""
+        return False
+
+    @property
     def jumps_at_lift_off(self) -> bool:
         """True if k(u) is discontinuous at |u| = u_crit (the P_crit / P_crit2 gap).
 
@@ -191,11 +196,18 @@ class Housner(AbstractRestoringForce):
         return sign * _rocking_force(s, theta)
 
 
+def _two_spring():
+    from ._twospring import TwoSpring2DOF
+
+    return TwoSpring2DOF()
+
+
 MODELS = {
     "simplified": Simplified,
     "exact": Exact,
     "smooth": Smooth,
     "housner": Housner,
+    "two_spring_2dof": _two_spring,
 }
 
 

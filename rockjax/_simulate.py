@@ -375,7 +375,7 @@ def simulate(
     jump_ts: bool = True,
     dt: float | None = None,
     method: str = "diffrax",
-    substeps: int = 1,
+    substeps: int | None = None,
 ) -> Response:
     r"""Integrate Eq. 1 from $t = 0$ to `t1` with impacts at $u = 0$ (Eqs 1–3).
 
@@ -408,8 +408,9 @@ def simulate(
       result is then a smooth function of every parameter, impact times included.
     - `method`: `"diffrax"` (default): the event-restart diffrax solve described above.
       `"rk4"`: the fast path of `rockjax.simulate_batch`, fixed RK4 steps on the record's
-      samples (`substeps` per interval; for a free vibration, steps of `dt`, default
-      t1/4000) with each event located inside its step; `jax.grad` and `jax.jacfwd` work.
+      samples (`substeps` per interval, default 4; for a free vibration, `substeps`, default
+      1, steps per `dt`, default t1/4000) with each event located inside its step;
+      `jax.grad` and `jax.jacfwd` work.
       `"dopri5"`: the same loop with adaptive Dormand–Prince 5(4) steps to `rtol`, `atol`
       (forward-mode `jax.jacfwd` only). Both need a concrete `t1`; outputs are computed on
       the grid and interpolated (cubic Hermite) to `ts`. Much faster for a full record
@@ -475,8 +476,20 @@ def simulate(
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
     if method not in ("diffrax", "rk4", "dopri5"):
         raise ValueError(f"method must be 'diffrax', 'rk4' or 'dopri5', got {method!r}")
-    if not (isinstance(substeps, int) and substeps >= 1):
+    if substeps is not None and not (isinstance(substeps, int) and substeps >= 1):
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+    model_obj = get_model(model)
+    if model_obj.two_dof:
+        if method != "diffrax":
+            raise ValueError("model two_spring_2dof is integrated with method='diffrax' only")
+        from ._twospring import simulate_2dof
+
+        return simulate_2dof(
+            _strong(structure), model_obj, _strong(excitation), t1, ts,
+            structure.restitution if r is None else r,
+            solver=_default_solver() if solver is None else solver, rtol=rtol, atol=atol,
+            max_steps=max_steps, max_impacts=max_impacts, adjoint=adjoint, dt=dt,
+        )
     if method != "diffrax":
         from ._batch import simulate_fast
 

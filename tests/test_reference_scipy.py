@@ -120,8 +120,14 @@ def reference_simulate(
     rtol: float = 1e-12,
     atol: float = 1e-14,
     dense: bool = True,
+    split: bool = True,
 ) -> ReferenceResult:
-    """Eq. 1 with impacts at u = 0 (Eq. 2), simplified k(u), by solve_ivp in segments."""
+    """Eq. 1 with impacts at u = 0 (Eq. 2), simplified k(u), by solve_ivp in segments.
+
+    With `split` (default) every record sample starts a new segment, so that no step
+    straddles a kink of the interpolated forcing; `split=False` lets solve_ivp step over
+    them (cheaper, less accurate: the speed/accuracy curve of a plain scipy user).
+    """
     p = reference_params(fields)
     M, u_crit, u_ot, K1 = p["M"], p["u_crit"], p["u_overturn"], p["K1"]
     slope2 = p["P_crit2"] / (u_crit - u_ot)  # post-uplift stiffness (negative)
@@ -139,11 +145,13 @@ def reference_simulate(
         n = 0
         knots = np.array([])
         first_dir = 1.0
+    if not split:
+        knots = np.array([])
     knots = np.concatenate([[0.0], knots, [t1]])
 
     def forcing_coeffs(ta):
         """a_g(t) = c0 + c1 t on the piece starting at ta (linear between samples)."""
-        if accel is None:
+        if accel is None or not split:
             return 0.0, 0.0
         i = int(math.floor(ta / dt + 1e-9))
         if i >= n - 1:
@@ -169,15 +177,26 @@ def reference_simulate(
         tb = knots[k]
         c0, c1 = forcing_coeffs(t)
 
-        if branch == 0:
+        if split or accel is None:
 
-            def fun(tt, y, c0=c0, c1=c1):
-                return [y[1], -K1 * y[0] / M - (c0 + c1 * tt)]
+            def ag(tt, c0=c0, c1=c1):
+                return c0 + c1 * tt
 
         else:
 
-            def fun(tt, y, c0=c0, c1=c1, side=side):
-                return [y[1], -side * slope2 * (side * y[0] - u_ot) / M - (c0 + c1 * tt)]
+            def ag(tt):
+                x = tt / dt
+                return float(np.interp(x, np.arange(n), accel)) if x <= n - 1 else 0.0
+
+        if branch == 0:
+
+            def fun(tt, y):
+                return [y[1], -K1 * y[0] / M - ag(tt)]
+
+        else:
+
+            def fun(tt, y, side=side):
+                return [y[1], -side * slope2 * (side * y[0] - u_ot) / M - ag(tt)]
 
         def ev_impact(tt, y):
             return y[0]

@@ -30,6 +30,7 @@ import optax
 import rockjax
 
 from ._optim import levenberg_marquardt
+from ._trace import DecayTrace
 
 PARAM_NAMES = ("k_f", "r", "u0", "t0")
 _T_SCALE = 0.01  # s, unit of t0 in the unconstrained coordinates
@@ -152,6 +153,18 @@ def fit_decay(
     ```
     """
     structure = rockjax.mcmanus_column() if structure is None else structure
+    if not isinstance(structure, rockjax.RockingStructure):
+        raise ValueError(
+            f"structure must be a rockjax.RockingStructure, got {type(structure).__name__}"
+        )
+    if any(np.ndim(getattr(structure, k)) != 0 for k in ("m_e", "m_b", "H_e", "H_b", "B",
+                                                         "I_eg", "I_bg", "k_f", "g")):
+        raise ValueError("structure must be a single structure (scalar fields), not a batch")
+    if isinstance(params, str):
+        raise ValueError(
+            f"params must be a sequence of names from {PARAM_NAMES}, e.g. ('k_f', 'r'), "
+            f"got the string {params!r}"
+        )
     params = tuple(params)
     bad = [p for p in params if p not in PARAM_NAMES]
     if bad or not params or len(set(params)) != len(params):
@@ -160,6 +173,32 @@ def fit_decay(
         raise ValueError(f"starts must be a positive integer, got {starts!r}")
     if not (isinstance(max_iter, int) and max_iter >= 1):
         raise ValueError(f"max_iter must be a positive integer, got {max_iter!r}")
+    rockjax.get_model(model)  # ValueError naming the model if unknown
+    from rockjax._simulate import IMPACT_RULES
+
+    if impact not in IMPACT_RULES:
+        raise ValueError(f"impact must be one of {IMPACT_RULES}, got {impact!r}")
+    try:
+        hs = tuple(float(h) for h in horizons)
+    except (TypeError, ValueError):
+        hs = ()
+    if not hs or not all(0.0 < h <= 1.0 for h in hs):
+        raise ValueError(
+            f"horizons must be a non-empty sequence of fractions in (0, 1], got {horizons!r}"
+        )
+    horizons = hs
+    for name, val in (("tol", tol), ("uplift_weight", uplift_weight)):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0, got {val!r}")
+    if not isinstance(trace, DecayTrace):
+        if not (hasattr(trace, "t") and hasattr(trace, "u")):
+            raise ValueError(
+                "trace must be an identification.DecayTrace (t [s], u [m], optional uplift "
+                f"[m]), got {type(trace).__name__}"
+            )
+        # validated like a DecayTrace: finite, strictly increasing, no gaps, >= 10 samples
+        trace = DecayTrace(t=trace.t, u=trace.u, uplift=getattr(trace, "uplift", None),
+                           source=str(getattr(trace, "source", "")))
     t = np.asarray(trace.t, float)
     u_meas = np.asarray(trace.u, float)
     up_meas = None if getattr(trace, "uplift", None) is None else np.asarray(trace.uplift, float)
@@ -175,14 +214,28 @@ def fit_decay(
         "u0": float(u_meas[0]),
         "t0": 0.0,
     }
+    if initial is not None and not isinstance(initial, dict):
+        raise ValueError(
+            f"initial must be a dict of starting values such as {{'k_f': 5e5}}, got {initial!r}"
+        )
     if initial:
         unknown = set(initial) - set(PARAM_NAMES)
         if unknown:
             raise ValueError(f"initial has unknown parameter(s) {sorted(unknown)}")
-        values0.update({k: float(v) for k, v in initial.items()})
+        for k, v in initial.items():
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise ValueError(f"initial {k} must be a number, got {v!r}") from None
+            if not math.isfinite(v):
+                raise ValueError(f"initial {k} must be finite, got {v}")
+            values0[k] = v
     k_min = float(_k_min(structure))
     if not values0["k_f"] > k_min:
-        raise ValueError(f"initial k_f must exceed the stability limit {k_min:.6g} N/m")
+        raise ValueError(
+            f"initial k_f must exceed the stability limit {k_min:.6g} N/m "
+            f"(2 k_f B^2 > W H_c), got {values0['k_f']:.6g} N/m"
+        )
     if not 0.0 < values0["r"] < 1.0:
         raise ValueError(f"initial r must lie strictly inside (0, 1), got {values0['r']}")
 

@@ -48,5 +48,6 @@ from ._structure import (  # noqa: E402
     mcmanus_column as mcmanus_column,
     RockingStructure as RockingStructure,
 )
+from ._twospring import TwoSpring2DOF as TwoSpring2DOF  # noqa: E402
 
 __version__ = "0.1.0"

@@ -66,6 +66,10 @@ def cmd_pushover(args):
 
     s = _load_structure(args.structure)
     umax = args.umax if args.umax is not None else 0.99 * float(s.u_overturn)
+    reach = float(s.R_e * (1.0 + math.sin(float(s.alpha_e))))
+    if umax >= reach:
+        raise CLIError(f"--umax must be below the body's reach R_e (1 + sin alpha_e) = "
+                       f"{reach:.6g} m, got {umax}")
     _check_png(args.plot)
     curves = pushover_curves(s, umax=umax, n=args.points)
     derived = s.derived()
@@ -151,6 +155,19 @@ def _finite_float(name):
     return conv
 
 
+_MAX_STEPS = 10_000_000
+
+
+def _check_t1_steps(t1, dt, what):
+    """A one-line error naming --t1, rather than numpy's size error, for absurd run lengths."""
+    n = t1 / dt
+    if not n <= _MAX_STEPS:
+        raise CLIError(
+            f"--t1 {t1:g} s is {n:.3g} {what} of {dt:g} s, more than {_MAX_STEPS:,}; "
+            "shorten --t1"
+        )
+
+
 def _build_excitation(args):
     from ._excitation import FreeVibration, GroundMotion
 
@@ -181,6 +198,7 @@ def cmd_simulate(args):
         t1 = 4.0
     if args.r is not None and not 0.0 <= args.r <= 1.0:
         raise CLIError(f"--r must lie in [0, 1], got {args.r}")
+    _check_t1_steps(t1, 0.002 if gm is None else float(gm.dt), "output samples")
     if gm is None:
         ts = np.linspace(0.0, t1, max(2, int(round(t1 / 0.002)) + 1))
     else:
@@ -615,6 +633,7 @@ def cmd_sweep(args):
     gm = _sweep_records(args.record, units, args.record_dt)
     rec_labels = _unique_labels(args.record)
     t1 = args.t1 if args.t1 is not None else float(gm.duration)
+    _check_t1_steps(t1, float(gm.dt), "record steps")
     scales = np.asarray(args.scales, float)
     n_s, n_r = len(scales), len(args.record)
     scale_b = np.repeat(scales, n_r)  # scale-major: run k is scale k // n_r, record k % n_r
@@ -784,11 +803,15 @@ def cmd_demo(args):
     ts = np.linspace(0.0, 4.0, 2001)
     free = simulate(s, FreeVibration(0.10), 4.0, ts=ts)
     free_exact = simulate(s, FreeVibration(0.10), 4.0, ts=ts, model="exact")
+    # the reference: the rigid body itself on two springs (2 DOF)
+    free_2dof = simulate(s, FreeVibration(0.10), 4.0, ts=ts, model="two_spring_2dof")
+    print(f"  free vibration: {int(free.n_impacts)} impacts (SDOF simplified), "
+          f"{int(free_2dof.n_impacts)} (2-DOF body)")
     fig = plot_response(
         s,
         free,
-        label="simplified",
-        overlay=[("exact", free_exact)],
+        label="simplified (SDOF)",
+        overlay=[("exact (SDOF)", free_exact), ("2-DOF rigid body", free_2dof)],
         title=f"Free vibration from u0 = 0.10 m, r = {d['restitution']:.3f} (Eq 3), cf. Fig 9",
     )
     written.append(out / "free_vibration.png")
@@ -923,7 +946,7 @@ def build_parser():
     )
     m.add_argument(
         "--model",
-        choices=["simplified", "exact", "smooth", "housner"],
+        choices=["simplified", "exact", "smooth", "housner", "two_spring_2dof"],
         default="simplified",
         help="restoring-force model (default simplified)",
     )

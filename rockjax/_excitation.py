@@ -69,14 +69,18 @@ class GroundMotion(AbstractExcitation):
     v0: jnp.ndarray = eqx.field(converter=_as_float_array, default=0.0)
 
     def __check_init__(self):
-        if not _is_tracer(self.dt) and not float(np.min(np.asarray(self.dt))) > 0:
-            raise ValueError(f"dt must be positive, got {np.asarray(self.dt)}")
+        if not _is_tracer(self.dt):
+            dt = np.asarray(self.dt)
+            if dt.size == 0 or not (np.all(np.isfinite(dt)) and float(np.min(dt)) > 0):
+                raise ValueError(f"dt must be positive and finite [s], got {dt}")
         if self.accel.ndim < 1 or self.accel.shape[-1] < 2:
             raise ValueError("accel must hold at least 2 samples")
         if not _is_tracer(self.accel) and not np.all(np.isfinite(np.asarray(self.accel))):
             raise ValueError("accel holds NaN or inf values")
-        if not _is_tracer(self.scale) and not np.all(np.isfinite(np.asarray(self.scale))):
-            raise ValueError(f"scale must be finite, got {np.asarray(self.scale)}")
+        for name in ("scale", "u0", "v0"):
+            x = getattr(self, name)
+            if not _is_tracer(x) and not np.all(np.isfinite(np.asarray(x))):
+                raise ValueError(f"{name} must be finite, got {np.asarray(x)}")
 
     @classmethod
     def from_file(cls, path, *, units=None, scale=1.0, dt=None, format=None):

@@ -86,8 +86,9 @@ def _hermite(a0, m0, a1, m1, s):
 def _hermite_root(a0, m0, a1, m1, level, iters=4):
     """The s in [0, 1] where the Hermite interpolant equals `level` (a0, a1 bracket it).
 
-    Safeguarded Newton (bisection when a Newton step leaves the bracket), finishing with a
-    plain Newton step so that the root carries the implicit-function derivative.
+    Safeguarded Newton (bisection when a Newton step leaves the bracket), finishing with two
+    plain Newton steps so that the root is converged and carries the implicit-function
+    derivative.
     """
     g0 = a0 - level
     den = g0 - (a1 - level)
@@ -104,9 +105,11 @@ def _hermite_root(a0, m0, a1, m1, level, iters=4):
         ok = der != 0
         sn = s - g / jnp.where(ok, der, 1.0)
         s = jnp.where(ok & (sn > lo) & (sn < hi), sn, 0.5 * (lo + hi))
-    val, der = _hermite(a0, m0, a1, m1, s)
-    ok = der != 0
-    return jnp.clip(s - jnp.where(ok, (val - level) / jnp.where(ok, der, 1.0), 0.0), 0.0, 1.0)
+    for _ in range(2):  # plain Newton: converged, and the implicit-function derivative
+        val, der = _hermite(a0, m0, a1, m1, s)
+        ok = der != 0
+        s = jnp.clip(s - jnp.where(ok, (val - level) / jnp.where(ok, der, 1.0), 0.0), 0.0, 1.0)
+    return s
 
 
 def _piece_peak(u0, v0, u1, v1, h):

@@ -112,10 +112,16 @@ class Record:
     units_in_file: str = "m/s2"
 
     def __post_init__(self) -> None:
-        dt = float(self.dt)
+        try:
+            dt = float(self.dt)
+        except (TypeError, ValueError):
+            raise ValueError(f"Record: dt must be a number [s], got {self.dt!r}") from None
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"Record: dt must be finite and > 0 [s], got {self.dt!r}")
-        accel = np.array(self.accel, dtype=np.float64, copy=True)
+        try:
+            accel = np.array(self.accel, dtype=np.float64, copy=True)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"Record: accel must be an array of numbers ({e})") from None
         if accel.ndim != 1:
             raise ValueError(f"Record: accel must be 1-D, got shape {accel.shape}")
         if accel.size < 2:
@@ -334,7 +340,7 @@ def _uniform_dt(t: np.ndarray, linenos: list[int], source: str) -> float:
         i = int(bad[0])
         raise ValueError(
             f"{source}, line {linenos[i + 1]}: time is not strictly increasing "
-            f"(t={t[i + 1]!r} s after t={t[i]!r} s)"
+            f"(t={float(t[i + 1])!r} s after t={float(t[i])!r} s)"
         )
     dt_med = float(np.median(d))
     dev = np.abs(d - dt_med)
@@ -343,7 +349,8 @@ def _uniform_dt(t: np.ndarray, linenos: list[int], source: str) -> float:
         i = int(bad[0])
         raise ValueError(
             f"{source}, line {linenos[i + 1]}: non-uniform time step: "
-            f"step {d[i]!r} s from t={t[i]!r} s differs from the median step {dt_med!r} s"
+            f"step {float(d[i]):.10g} s from t={float(t[i]):.10g} s differs from the median "
+            f"step {dt_med:.10g} s"
         )
     return float((t[-1] - t[0]) / (t.size - 1))
 
@@ -420,7 +427,10 @@ def read_record(
     if units is not None:
         units = _normalize_units(units)
     if dt is not None:
-        dt = float(dt)
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise ValueError(f"dt must be a number of seconds, got dt={dt!r}") from None
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be finite and > 0 [s], got dt={dt!r}")
     if format is not None:

@@ -41,6 +41,35 @@ class Response(eqx.Module):
         return STATUS_NAMES[int(self.status)]
 
     @property
+    def message(self) -> str:
+        """A one-line explanation of the status, with the remedy for a failure (for an
+        unbatched response)."""
+        name = self.status_name
+        n = int(self.n_impacts)
+        if name == "completed":
+            return f"completed: the run reached its end time ({n} impacts)"
+        if name == "overturned":
+            return (
+                f"overturned: |u| reached u_overturn at t = {float(self.t_overturn):.6g} s "
+                f"(after {n} impacts)"
+            )
+        if name == "max_impacts":
+            budget = int(np.shape(self.impact_times)[-1])
+            why = (
+                f"the run reached the bound of {budget} impacts"
+                if n >= budget
+                else f"the run ran out of event segments after {n} impacts (the segment "
+                f"budget grows with max_impacts = {budget}; a very stiff k_f causes this)"
+            )
+            return f"max_impacts: {why}; raise max_impacts to continue"
+        return (
+            "solver_failure: the integration failed (non-finite state or step budget "
+            "exhausted, typically a very stiff foundation k_f); use model=\"housner\" "
+            "(the rigid limit k_f -> infinity), a fixed-step setting (method=\"rk4\" with "
+            "more substeps, or dt=), method=\"dopri5\", or a larger max_steps"
+        )
+
+    @property
     def impacts(self) -> np.ndarray:
         """The impact times [s] without padding (for an unbatched response)."""
         return np.asarray(self.impact_times)[: int(self.n_impacts)]

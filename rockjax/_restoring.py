@@ -10,9 +10,15 @@ from __future__ import annotations
 import abc
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._kinematics import theta_from_u
+
+
+def _is_traced(x):
+    return isinstance(x, jax.core.Tracer)
 
 
 def _rocking_force(structure, theta):
@@ -157,8 +163,10 @@ class Smooth(AbstractRestoringForce):
 
     def __check_init__(self):
         w = self.width
-        if isinstance(w, (int, float)) and not (0.0 < w < 1.0):
-            raise ValueError(f"width must be in (0, 1) (a fraction of u_crit), got {w}")
+        if not _is_traced(w):
+            wa = np.asarray(w, dtype=float)
+            if not np.all((wa > 0.0) & (wa < 1.0)):
+                raise ValueError(f"width must be in (0, 1) (a fraction of u_crit), got {wa}")
 
     def __call__(self, structure, u):
         s = structure

@@ -428,6 +428,10 @@ def simulate(
     res.n_impacts, res.peak_u
     ```
     """
+    from ._structure import RockingStructure
+
+    if not isinstance(structure, RockingStructure):
+        raise ValueError(f"structure must be a RockingStructure, got {type(structure).__name__}")
     if not isinstance(excitation, AbstractExcitation):
         raise ValueError(
             f"excitation must be a FreeVibration or GroundMotion, got {type(excitation).__name__}"
@@ -437,9 +441,17 @@ def simulate(
     if adjoint not in ("reverse", "forward"):
         raise ValueError(f"adjoint must be 'reverse' or 'forward', got {adjoint!r}")
     if not isinstance(t1, jax.core.Tracer):
-        t1f = float(np.max(np.asarray(t1)))
-        if not np.isfinite(t1f) or not float(np.min(np.asarray(t1))) > 0:
-            raise ValueError(f"t1 must be positive and finite, got {np.asarray(t1)}")
+        try:
+            t1a = np.asarray(t1, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"t1 must be a positive, finite number of seconds, got {t1!r}"
+            ) from None
+        if t1a.size < 1:
+            raise ValueError("t1 must be a positive, finite number of seconds, got an empty array")
+        t1f = float(np.max(t1a))
+        if not np.isfinite(t1f) or not float(np.min(t1a)) > 0:
+            raise ValueError(f"t1 must be positive and finite, got {t1a}")
     else:
         t1f = None
     if ts is None:
@@ -472,8 +484,10 @@ def simulate(
             raise ValueError(f"{name} must be a positive number, got {val!r}")
     if not (isinstance(max_impacts, int) and max_impacts >= 1):
         raise ValueError(f"max_impacts must be a positive integer, got {max_impacts!r}")
-    if dt is not None and not (isinstance(dt, (int, float)) and dt > 0):
-        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    if dt is not None and not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive number of seconds (finite), got {dt!r}")
+    if not (isinstance(max_steps, int) and max_steps >= 1):
+        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
     if method not in ("diffrax", "rk4", "dopri5"):
         raise ValueError(f"method must be 'diffrax', 'rk4' or 'dopri5', got {method!r}")
     if substeps is not None and not (isinstance(substeps, int) and substeps >= 1):

@@ -82,6 +82,8 @@ class RockingStructure(eqx.Module):
         raise `ValueError` naming them.
         """
         path = pathlib.Path(path)
+        if path.is_dir():
+            raise IsADirectoryError(f"structure file is a directory: {path}")
         if not path.is_file():
             raise FileNotFoundError(f"structure file not found: {path}")
         try:
@@ -89,6 +91,8 @@ class RockingStructure(eqx.Module):
                 doc = tomllib.load(f)
         except tomllib.TOMLDecodeError as e:
             raise ValueError(f"{path}: not valid TOML ({e})") from None
+        except UnicodeDecodeError as e:
+            raise ValueError(f"{path}: not valid TOML (not UTF-8 text: {e.reason})") from None
         return cls.from_dict(doc.get("structure", doc), source=str(path))
 
     @classmethod

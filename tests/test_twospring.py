@@ -1,0 +1,192 @@
+"""The 2-DOF rigid body on two springs: statics, linear frequency, energy, the rigid-rocking
+quadrature, the SDOF comparison and gradients (float64 finite differences)."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.integrate import quad, solve_ivp
+
+import rockjax
+from rockjax import _twospring as T2, FreeVibration, simulate
+
+
+def _zero_crossings(ts, u):
+    """Times of sign changes of u, linearly interpolated."""
+    ts, u = np.asarray(ts), np.asarray(u)
+    i = np.nonzero(np.sign(u[:-1]) * np.sign(u[1:]) < 0)[0]
+    return ts[i] - u[i] * (ts[i + 1] - ts[i]) / (u[i + 1] - u[i])
+
+
+def test_static_limit_equals_pushover(column):
+    """Virtual work on the 2-DOF potential against rockjax.pushover's force/moment balance."""
+    u = jnp.concatenate([jnp.linspace(-0.36, -0.001, 6), jnp.linspace(0.0005, 0.36, 9)])
+    P2 = T2.static_pushover(column, u)
+    P = rockjax.pushover(column, u).P
+    np.testing.assert_allclose(P2, P, rtol=1e-6, atol=1e-6 * float(column.P_crit))
+    # as a restoring-force law the model is that pushover
+    np.testing.assert_allclose(rockjax.restoring_force(column, u[:3], "two_spring_2dof"), P[:3])
+
+
+def _linearised_omega(s):
+    """Independent linearisation: energies of the body rotating about its base centre on
+    both springs, written here in numpy, Hessians by central differences."""
+    m_e, m_b, H_e, H_b, B = (float(getattr(s, k)) for k in ("m_e", "m_b", "H_e", "H_b", "B"))
+    I = float(s.I_eg + s.I_bg)
+    k, g = float(s.k_f), float(s.g)
+    W = (m_e + m_b) * g
+    y0 = -W / (2 * k)
+
+    def V(y, th):
+        yl, yr = y + B * math.sin(th), y - B * math.sin(th)
+        grav = g * (m_e * (y + H_e * math.cos(th)) + m_b * (y + H_b * math.cos(th)))
+        return grav + 0.5 * k * (yl**2 + yr**2)
+
+    h = 1e-5
+    K = np.zeros((2, 2))
+    x0 = np.array([y0, 0.0])
+    for i in range(2):
+        for j in range(2):
+            e_i, e_j = np.eye(2)[i] * h, np.eye(2)[j] * h
+            K[i, j] = (V(*(x0 + e_i + e_j)) - V(*(x0 + e_i - e_j)) - V(*(x0 - e_i + e_j))
+                       + V(*(x0 - e_i - e_j))) / (4 * h * h)
+    M = np.array([[m_e + m_b, 0.0], [0.0, I + m_e * H_e**2 + m_b * H_b**2]])
+    w2 = np.linalg.eigvals(np.linalg.solve(M, K))
+    return np.sqrt(np.sort(w2.real))  # (rocking, vertical)
+
+
+def test_small_amplitude_frequency_is_the_linearised_one(column):
+    omega_rock, omega_vert = _linearised_omega(column)
+    assert float(T2.linearised_frequency(column)) == pytest.approx(omega_rock, rel=1e-6)
+    model = T2.TwoSpring2DOF(contact="continuous")
+    ts = np.linspace(0.0, 0.6, 3001)
+    res = simulate(column, FreeVibration(5e-4), 0.6, ts=ts, model=model)  # u_crit = 5.5 mm
+    assert res.status_name == "completed" and int(res.n_impacts) == 0
+    zc = _zero_crossings(res.ts, res.u)
+    period = 2 * np.mean(np.diff(zc))
+    assert 2 * np.pi / period == pytest.approx(omega_rock, rel=2e-4)
+    # the SDOF pre-uplift frequency sqrt(K1 / (m_e + m_b)) differs by the rotary inertia
+    sdof = float(jnp.sqrt(column.K1 / column.mass))
+    assert abs(sdof / omega_rock - 1) < 0.05
+
+
+def test_equations_of_motion_conserve_energy(column):
+    """Lagrange's equations (autodiff) integrated by scipy on one contact state conserve
+    T + V to the integration tolerance: both springs in contact, no dashpot."""
+    s = column
+    model = T2.TwoSpring2DOF(contact="continuous")
+    q0, _, pivot, _ = T2.static_state(s, jnp.asarray(0.004))  # before lift-off
+    acc = jax.jit(lambda q, qd: T2.accelerations(s, model, q, qd, 0.0, True, True, 0.0))
+
+    def f(t, y):
+        return np.concatenate([y[2:], np.asarray(acc(jnp.asarray(y[:2]), jnp.asarray(y[2:])))])
+
+    y0 = np.concatenate([np.asarray(q0), [0.0, 0.0]])
+    sol = solve_ivp(f, (0.0, 0.5), y0, method="DOP853", rtol=1e-12, atol=1e-15,
+                    dense_output=True)
+    E = [float(T2.energy(s, jnp.asarray(y[:2]), jnp.asarray(y[2:]), 0.0))
+         for y in sol.sol(np.linspace(0, 0.5, 50)).T]
+    scale = float(s.W * s.u_crit)
+    assert np.max(np.abs(np.asarray(E) - E[0])) / scale < 1e-9
+    assert np.min(np.asarray(sol.y[:2])) < 0 and np.max(np.asarray(sol.y[:2])) < 0  # contact
+
+
+def test_pivot_switch_never_gains_energy(column):
+    """The friction impulse of a pivot change is an inelastic projection: kinetic energy
+    drops, by a fraction of order (delta_0 / H)^2, and the new constraint holds."""
+    s = column
+    q = T2.coords(s, jnp.asarray(-1e-3), jnp.asarray(0.01))
+    for qd in (jnp.asarray([0.3, -0.2]), jnp.asarray([-0.1, 0.4])):
+        for old, new in ((0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 1.0)):
+            T_before = float(T2.kinetic(s, q, qd, old))
+            qd2 = T2.switch_pivot(s, q, qd, old, new)
+            T_after = float(T2.kinetic(s, q, qd2, new))
+            assert T_after <= T_before * (1 + 1e-14)
+            assert T_before - T_after < 1e-3 * T_before
+
+
+def _rigid_first_zero_crossing(s, u0):
+    """Time for the rigid body released at rest from u0 to return to u = 0, rotating about
+    a corner (energy quadrature, Housner): 1/2 I_O th'^2 = W R_c [cos(a - th0) - cos(a - th)]."""
+    R_e, a_e = float(s.R_e), float(s.alpha_e)
+    R_c, a_c = float(s.R_c), float(s.alpha_c)
+    th0 = a_e - math.asin(math.sin(a_e) - u0 / R_e)  # u = R_e [sin a_e - sin(a_e - th)]
+    W, I_O = float(s.W), float(s.I_O)
+
+    def rate(th):
+        return math.sqrt(2 * W * R_c * (math.cos(a_c - th0) - math.cos(a_c - th)) / I_O)
+
+    # substitute th = th0 - x^2 to remove the integrable singularity at the release
+    val, _ = quad(lambda x: 2 * x / rate(th0 - x * x), 0.0, math.sqrt(th0), limit=200)
+    return val
+
+
+@pytest.fixture(scope="module")
+def release(column):
+    ts = np.linspace(0.0, 0.6, 3001)
+    return simulate(column, FreeVibration(0.10), 0.6, ts=ts, model="two_spring_2dof")
+
+
+def test_first_zero_crossing_matches_rigid_rocking(column, release):
+    t_rigid = _rigid_first_zero_crossing(column, 0.10)
+    t_2dof = _zero_crossings(release.ts, release.u)[0]
+    assert abs(t_2dof / t_rigid - 1) < 0.01, (t_2dof, t_rigid)
+    # the SDOF models, for the record (their differences are reported in the fidelity study)
+    for model, tol in (("exact", 0.01), ("simplified", 0.02)):
+        sd = simulate(column, FreeVibration(0.10), 0.6, ts=np.asarray(release.ts), model=model)
+        assert abs(_zero_crossings(sd.ts, sd.u)[0] / t_2dof - 1) < tol
+
+
+def test_release_basics(column, release):
+    assert release.status_name == "completed"
+    assert int(release.n_impacts) >= 1  # the lifted corner lands
+    assert float(release.peak_u) == pytest.approx(0.10, rel=1e-9)
+    assert np.all(np.isfinite(np.asarray(release.u)))
+    assert float(release.uplift[0]) > 0.03  # the lifted corner at the release
+
+
+def test_overturning_release_and_push(column):
+    ts = np.linspace(0.0, 0.6, 3001)  # the release fixture's shapes: one compilation
+    gone = simulate(column, FreeVibration(1.01 * float(column.u_overturn)), 0.6, ts=ts,
+                    model="two_spring_2dof")
+    assert gone.status_name == "overturned" and float(gone.t_overturn) == 0.0
+    push = simulate(column, FreeVibration(0.25, 0.8), 0.6, ts=ts, model="two_spring_2dof")
+    assert push.status_name == "overturned" and np.isfinite(float(push.t_overturn))
+    assert np.all(np.isfinite(np.asarray(push.u)))
+
+
+def _fd(f, x, h):
+    return (-f(x + 2 * h) + 8 * f(x + h) - 8 * f(x - h) + f(x - 2 * h)) / (12 * h)
+
+
+def test_gradients_match_finite_differences(column):
+    """d/dk_f through lift-off and landing (u0 = 20 mm > u_crit), and d/dc_f of the dashpots
+    on small oscillations (u0 = 3 mm: no contact change, so the dashpot never pulls and the
+    clip at zero force stays inactive); fixed steps, forward mode, 5-point differences."""
+    ts = jnp.linspace(0.0, 0.5, 101)
+
+    def out(p, u0):
+        model = T2.TwoSpring2DOF(damping=p[1], contact="continuous")
+        res = simulate(column.replace(k_f=p[0]), FreeVibration(u0), 0.5, ts=ts, model=model,
+                       dt=2e-4, adjoint="forward")
+        return jnp.sum(res.u**2)
+
+    p0 = jnp.asarray([5.5e5, 500.0])
+    for j, u0, h in ((0, 0.02, 50.0), (1, 0.003, 5.0)):
+        g = jax.jacfwd(out)(p0, jnp.asarray(u0))[j]
+        fd = _fd(lambda x: out(p0.at[j].set(x), jnp.asarray(u0)), p0[j], h)
+        np.testing.assert_allclose(g, fd, rtol=1e-6)
+
+
+def test_bad_model_settings():
+    with pytest.raises(ValueError, match="contact"):
+        T2.TwoSpring2DOF(contact="sticky")
+    with pytest.raises(ValueError, match="damping"):
+        T2.TwoSpring2DOF(damping=-1.0)
+    with pytest.raises(ValueError, match="two_spring_2dof"):
+        simulate(rockjax.mcmanus_column(), FreeVibration(0.1), 1.0, model="two_spring_2dof",
+                 method="rk4")

@@ -281,7 +281,8 @@ def simulate_batch(
       their grid and interpolate (cubic Hermite) to `ts`.
     - `summary_only`: return a `Summary` (peak_u, peak_uplift, n_impacts, status,
       t_overturn) and store no time history.
-    - `max_pieces`: event-localised pieces per step (default 4 for rk4; 4096 for dopri5).
+    - `max_pieces`: event-localised pieces per step (default 4 for rk4, 32 for the rigid
+      `housner` model, whose settling impacts crowd; 4096 for dopri5).
     - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
       padded, so every chunk reuses one compilation. Default: 8192 summaries, or as many
       full responses as fit in about 256 MB.
@@ -376,7 +377,8 @@ def simulate_batch(
     chunk = n_dev * math.ceil(chunk / n_dev)
     n_chunks = math.ceil(N / chunk)
     if max_pieces is None:
-        max_pieces = 4 if method == "rk4" else 4096
+        # a settling rigid block (housner) has many impacts per step; others a few at most
+        max_pieces = (32 if model.rigid else 4) if method == "rk4" else 4096
     if not (isinstance(max_pieces, int) and max_pieces >= 2):
         raise ValueError(f"max_pieces must be an integer >= 2, got {max_pieces!r}")
 
@@ -604,7 +606,8 @@ def simulate_fast(
         free=free,
         full=True,
         max_impacts=max_impacts,
-        max_pieces=(4 if method == "rk4" else 4096) if max_pieces is None else max_pieces,
+        max_pieces=((32 if get_model(model).rigid else 4) if method == "rk4" else 4096)
+        if max_pieces is None else max_pieces,
         rtol=float(rtol),
         atol=float(atol),
     )

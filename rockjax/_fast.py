@@ -204,6 +204,14 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
     )
     if cfg.full:
         state["it"] = jnp.full((*shape, cfg.max_impacts), jnp.inf, dtype)
+    # A rigid block (housner) on the ground stays at rest until the ground acceleration
+    # exceeds the uplift threshold A = k(0+) / M; without this rule Eq. 1, whose force jumps
+    # at u = 0, chatters through infinitely many impacts from rest.
+    sticky = rigid and not cfg.free
+    if sticky:
+        A_up = model.locked(c, jnp.zeros(shape, dtype), jnp.ones(shape, dtype),
+                            jnp.ones(shape, bool)) / M
+        state["rest"] = (u0 == 0) & (v0 == 0) & ~over0
 
     def rk_step(u, v, tau, h, sgn, br, a0, da):
         def f(uu, tt):
@@ -232,9 +240,30 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
         err = jnp.maximum(jnp.abs(eu) / su, jnp.abs(ev) / sv)
         return u1, v1, err
 
+    def release(st, L, a0, da, tau):
+        """Resting rigid blocks: when, within [tau, L], |a_g| first exceeds A_up."""
+        resting = st["rest"] & ~st["done"] & (tau < L)
+        now = jnp.abs(a0 + da * tau) > A_up
+        safe = jnp.where(da != 0, da, 1.0)
+        cands = [(A_up - a0) / safe, (-A_up - a0) / safe]
+        t_cross = jnp.full_like(tau, jnp.inf)
+        for tc in cands:
+            t_cross = jnp.minimum(t_cross, jnp.where((da != 0) & (tc > tau) & (tc <= L), tc,
+                                                     jnp.inf))
+        t_rel = jnp.where(now, tau, t_cross)
+        released = resting & jnp.isfinite(t_rel)
+        a_rel = a0 + da * jnp.where(released, t_rel, tau)
+        tau = jnp.where(resting, jnp.where(released, t_rel, L), tau)
+        sgn = jnp.where(released, jnp.where(a_rel > 0, -1.0, 1.0).astype(dtype), st["sgn"])
+        return dict(st, sgn=sgn, rest=st["rest"] & ~released), tau
+
     def piece(st, L, t_start, a0, da, tau):
         """Advance every active member by one piece: a trial step, then the first event."""
+        if sticky:
+            st, tau = release(st, L, a0, da, tau)
         active = ~st["done"] & (tau < L)
+        if sticky:
+            active = active & ~st["rest"]
         u, v, sgn, br = st["u"], st["v"], st["sgn"], st["br"]
         rest_len = L - tau
         if cfg.method == "fixed":
@@ -294,6 +323,9 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
         v_new = jnp.where(real, sqrt_r * ve, ve)
         n_imp = st["n_imp"] + real.astype(jnp.int32)
         rest = imp_h & (0.5 * M * v_new**2 <= 1e-14 * E0) if cfg.free else jnp.zeros_like(hit)
+        if sticky:  # the impacts of a settling block converge: it comes to rest
+            settle = real & (0.5 * v_new**2 <= 1e-8 * A_up * c.B)
+            v_new = jnp.where(settle, 0.0, v_new)
         too_many = real & (n_imp >= cfg.max_impacts)
         ot_h = hit & ot & ok
         failed = active & ~ok
@@ -315,6 +347,8 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
             t_ot=jnp.where(ot_h, t_ev, st["t_ot"]),
             hprop=hprop,
         )
+        if sticky:
+            new["rest"] = st["rest"] | settle
         if cfg.full:
             it = st["it"]
             slot = jnp.minimum(st["n_imp"], cfg.max_impacts - 1)
@@ -346,6 +380,8 @@ def run(structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: FastConfig):
             def finish(x):
                 st, tau = x
                 todo = ~st["done"] & (tau < L)
+                if sticky:
+                    todo = todo & ~st["rest"]
                 u1, v1, _ = rk_step(st["u"], st["v"], tau, L - tau, st["sgn"], st["br"], a0, da)
                 ok = jnp.isfinite(u1) & jnp.isfinite(v1)
                 st = dict(

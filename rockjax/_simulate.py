@@ -105,7 +105,7 @@ _WINDOW = 64  # output times handled per segment: saving costs O(_WINDOW), not O
 @eqx.filter_jit
 def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
     """The jitted core. The run is a sequence of segments; each segment is one diffrax
-    solve that ends at the first of these events (each located by Newton's method on the
+    solve that ends at the first of these events (each located by bisection on the
     dense solution, so its time is differentiable):
 
     0. impact: u crosses 0 -> restart with v <- sqrt(r) v (Eq. 2);
@@ -230,9 +230,46 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
         t_overturn=jnp.where(overturned0, 0.0, jnp.inf).astype(dtype),
         done=overturned0,
         rest=jnp.zeros((), bool),
+        rest_g=jnp.asarray(rigid and isinstance(excitation, GroundMotion))
+        & (u0 == 0) & (v0 == 0) & ~overturned0,
     )
 
+    sticky = rigid and isinstance(excitation, GroundMotion)
+    if sticky:
+        # A rigid block (housner) on the ground stays at rest until |ground accel| exceeds
+        # the uplift threshold A = k(0+) / M; Eq. 1 alone (its force jumps at u = 0) would
+        # chatter through infinitely many impacts from rest.
+        A_up = model.locked(s, jnp.zeros((), dtype), jnp.ones((), dtype), True) / M
+        acc_s = excitation.scale * excitation.accel
+        t_s = excitation.dt * jnp.arange(acc_s.shape[-1], dtype=dtype)
+
+        def release_time(t):
+            """First time >= t when |a_g| exceeds A_up (inf if never), and a_g's sign."""
+            a_now = excitation.ground_acceleration(t)
+            mask = (t_s > t) & (jnp.abs(acc_s) > A_up)
+            j = jnp.argmax(mask)
+            a_j = acc_s[j]
+            a_p = jnp.where(j > 0, acc_s[jnp.maximum(j - 1, 0)], 0.0)
+            f = (jnp.sign(a_j) * A_up - a_p) / jnp.where(a_j != a_p, a_j - a_p, 1.0)
+            t_c = jnp.maximum(t_s[j] - (1.0 - f) * excitation.dt, t)
+            now = jnp.abs(a_now) > A_up
+            t_r = jnp.where(now, t, jnp.where(jnp.any(mask), t_c, jnp.inf))
+            return t_r, jnp.where(now, a_now, a_j)
+
     def body(c):
+        if sticky:
+            t_r, a_r = release_time(c["t"])
+            resting = c["rest_g"]
+            go = jnp.where(a_r > 0, -1.0, 1.0).astype(dtype)
+            c = dict(
+                c,
+                t=jnp.where(resting, jnp.minimum(t_r, t1), c["t"]),
+                sign=jnp.where(resting, go, c["sign"]),
+                vsign=jnp.where(resting, go, c["vsign"]),
+                v_offset=jnp.where(resting, 0.0, c["v_offset"]).astype(dtype),
+                lift_offset=jnp.where(resting, 0.0, c["lift_offset"]).astype(dtype),
+                rest_g=resting & (t_r >= t1),
+            )
         t_start = c["t"]
         # the window of output times handled by this segment
         i0 = jnp.searchsorted(ts, t_start, side="left")
@@ -301,6 +338,11 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
         too_many = real & (n_imp >= cfg.max_impacts)
         # a free vibration that has run out of energy rests at u = 0
         rest = free & hit_impact & (0.5 * M * v_new**2 <= 1e-14 * E0)
+        if sticky:  # the impacts of a settling block converge: it comes to rest
+            settle = real & (0.5 * v_new**2 <= 1e-8 * A_up * s.B)
+            v_new = jnp.where(settle, 0.0, v_new)
+        else:
+            settle = jnp.zeros((), bool)
         status = jnp.select(
             [failed, hit_overturn, too_many],
             [STATUS["solver_failure"], STATUS["overturned"], STATUS["max_impacts"]],
@@ -323,8 +365,9 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
             lifted=jnp.where(real, False, lifted),
             status=status,
             t_overturn=jnp.where(hit_overturn, tend, c["t_overturn"]),
-            done=failed | hit_overturn | too_many | reached | rest,
+            done=failed | hit_overturn | too_many | reached | rest | c["rest_g"],
             rest=rest,
+            rest_g=c["rest_g"] | settle,
         )
 
     # Bound on the number of segments: impacts, lift-offs (2 per impact), turning points

@@ -2,7 +2,7 @@ r"""The reference model: the rigid body itself on two compression-only springs (
 
 The paper reduces the rocking body to the SDOF Eq. 1 with inertia $(m_e + m_b)$. This
 module integrates the body it came from, geometrically exactly, so that the reduction can
-be checked (the fidelity study in `benchmarks/results.md`). It is what an engineer would
+be checked (the fidelity study in `benchmarks/fidelity.md`). It is what an engineer would
 otherwise build in OpenSees from compression-only zeroLength springs and a corotational
 rigid body.
 

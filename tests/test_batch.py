@@ -331,3 +331,28 @@ def test_rk4_el_centro_scale_gradient(column, gm):
     # below h ~ 1e-5 the difference quotient meets the rounding of the event locations
     fd = _fd5(peak, jnp.asarray(1.0), 1e-4)
     np.testing.assert_allclose(g, fd, rtol=1e-4)
+
+
+def test_rigid_block_rests_until_the_uplift_threshold(column, gm):
+    """housner under a ground motion: at rest while |a_g| <= k(0+)/M, then rocking; the
+    three integrators agree (without the rest rule Eq. 1 chatters at u = 0 from rest)."""
+    A = float(rockjax.restoring_force(column, 1e-12, "housner") / column.mass)
+    peak_g = float(np.max(np.abs(np.asarray(gm.accel))))
+    quiet = GroundMotion(dt=gm.dt, accel=gm.accel, scale=0.9 * A / peak_g)
+    for method in ("diffrax", "rk4"):
+        res = simulate(column, quiet, T_EQ, model="housner", method=method)
+        assert res.status_name == "completed" and int(res.n_impacts) == 0
+        assert float(res.peak_u) == 0.0 and np.all(np.asarray(res.u) == 0.0)
+    strong = GroundMotion(dt=gm.dt, accel=gm.accel, scale=2.0)
+    runs = [simulate(column, strong, T_EQ, model="housner", method=m)
+            for m in ("diffrax", "rk4", "dopri5")]
+    for res in runs:
+        assert res.status_name == "completed" and 0 < int(res.n_impacts) < 1024
+        assert 0.05 < float(res.peak_u) < float(column.u_overturn)
+    np.testing.assert_allclose([float(r.peak_u) for r in runs], float(runs[0].peak_u),
+                               rtol=1e-6)
+    # it starts to move exactly when |a_g| first exceeds the threshold
+    a = 2.0 * np.asarray(gm.accel)
+    t_first = float(np.asarray(gm.dt)) * np.argmax(np.abs(a) > A)
+    moving = np.asarray(runs[0].ts)[np.argmax(np.abs(np.asarray(runs[0].u)) > 0)]
+    assert t_first - 0.011 < moving <= t_first + 0.011

@@ -436,6 +436,14 @@ def write_markdown(path, info, single, models, batch, batch_acc, grads, mem, ref
         L.append(f"| {m['case']} | {m['first_call_s']:.2f} | {m['peak_rss_mb']:.0f} |")
     L.append("\nCompile times of the single runs are in table (a) (first call minus a later "
              "call).\n")
+    fid = path.parent / "fidelity.md"
+    if fid.is_file():  # issue 6's study, from its own script: one results page
+        body = fid.read_text().split("\n", 1)[1]
+        L.append("\n## (f) Model fidelity: the SDOF reduction against the 2-DOF body\n")
+        L.append("From `python benchmarks/fidelity.py` (its own run, also in "
+                 "`benchmarks/fidelity.md`); figure `fidelity.png`.\n")
+        L.append("![fidelity](fidelity.png)\n")
+        L.append(body.replace("\n## ", "\n### ").replace("\n# ", "\n### "))
     path.write_text("\n".join(L) + "\n")
 
 

@@ -332,6 +332,9 @@ def simulate_batch(
     if substeps is None:
         substeps = 1 if free else 4
     dtype = jnp.result_type(structure.B)
+    if method == "diffrax" and dtype != jnp.float64:
+        raise ValueError(f"method 'diffrax' runs in float64; this structure is {dtype}: use "
+                         "method='rk4' or 'dopri5' for float32")
 
     # the grid: the record's samples, or dt for a free vibration
     if free:

@@ -536,6 +536,12 @@ def simulate(
     if substeps is not None and not (isinstance(substeps, int) and substeps >= 1):
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
     model_obj = get_model(model)
+    if method == "diffrax" and jnp.result_type(structure.B) != jnp.float64:
+        raise ValueError(
+            f"method 'diffrax' runs in float64; this structure is "
+            f"{jnp.result_type(structure.B)}: use method='rk4' or 'dopri5' for float32 "
+            "(see docs/batches.md), or structure.astype(jnp.float64)"
+        )
     if model_obj.two_dof:
         if method != "diffrax":
             raise ValueError("model two_spring_2dof is integrated with method='diffrax' only")

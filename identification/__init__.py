@@ -9,6 +9,7 @@ from ._fit import (
     fit_decay as fit_decay,
     FitResult as FitResult,
     IdentifiabilityWarning as IdentifiabilityWarning,
+    OutlierWarning as OutlierWarning,
     PARAM_NAMES as PARAM_NAMES,
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt

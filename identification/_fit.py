@@ -40,6 +40,51 @@ class IdentifiabilityWarning(UserWarning):
     """The trace does not pin a parameter down (large standard error or correlation)."""
 
 
+class OutlierWarning(UserWarning):
+    """Samples of the trace lie far from the fit (spikes): they were left out of it."""
+
+
+OUTLIER_SIGMAS = 6.0
+"""A residual more than this many robust standard deviations from its channel's median
+(and above `_OUTLIER_FLOOR` of the trace amplitude) marks an outlier."""
+_OUTLIER_FLOOR = 1e-6
+_MAX_REFITS = 3
+_MAX_OUTLIER_FRACTION = 0.05
+
+
+def _find_outliers(channels, excluded, within, sigmas=OUTLIER_SIGMAS):
+    """Samples whose residual is an outlier, as a boolean array (n samples).
+
+    `channels`: residual arrays (n,) scaled by the trace amplitude (displacement, and
+    uplift when measured); `excluded`: samples already left out of the fit; `within`: the
+    samples the fit covers (its last horizon), the only ones considered. The scale of
+    each channel is the median absolute deviation (x 1.4826, the standard deviation for
+    Gaussian noise) over its kept samples (for uplift, those with a non-zero residual: the
+    model and a noise-free trace both have exactly zero uplift before lift-off). A sample
+    is an outlier when its residual lies more than `sigmas` of these, and more than
+    `_OUTLIER_FLOOR`, from the median, and - since a few large spikes pull the fit and
+    spread the residuals of the other samples - within a factor 10 of the largest such
+    deviation among the kept samples. Excluded samples stay out while they remain
+    outliers: the search converges in a few refits, largest spikes first.
+    """
+    flag = np.zeros(channels[0].shape, bool)
+    for k, res in enumerate(channels):
+        kept = within & ~excluded & ((res != 0) if k > 0 else True)
+        if np.count_nonzero(kept) < 10:
+            continue
+        med = float(np.median(res[kept]))
+        mad = 1.4826 * float(np.median(np.abs(res[kept] - med)))
+        dev = np.abs(res - med)
+        z = dev / max(mad, 1e-300)
+        big = (dev > sigmas * mad) & (dev > _OUTLIER_FLOOR) & within
+        if not np.any(big & ~excluded):
+            flag |= big & excluded
+            continue
+        z_top = float(np.max(np.where(within & ~excluded, z, 0.0)))
+        flag |= big & (excluded | (z >= 0.1 * z_top))
+    return flag
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class FitResult:
     """Result of `fit_decay` (SI units: k_f [N/m], r [-], u0 [m], t0 [s]).
@@ -55,7 +100,9 @@ class FitResult:
     - `converged`: the optimiser stopped on its tolerance (not on `max_iter`), at a finite
       loss.
     - `identifiability`: sensitivities and the k_f-r correlation (see `identifiability`);
-      `warnings`: the messages of any `IdentifiabilityWarning` raised.
+      `warnings`: the messages of any `IdentifiabilityWarning` or `OutlierWarning` raised.
+    - `outliers`: indices of the trace samples left out of the fit as outliers (empty if
+      none); `loss`, `rms`, `sigma` and the standard errors are over the other samples.
     """
 
     names: tuple
@@ -74,6 +121,7 @@ class FitResult:
     identifiability: dict
     warnings: tuple
     scale: float
+    outliers: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
 
     def summary(self) -> dict:
         """A JSON-ready dict: values, standard errors, correlation, loss, converged."""
@@ -92,6 +140,7 @@ class FitResult:
             "n_iterations": self.n_iterations,
             "identifiability": self.identifiability,
             "warnings": list(self.warnings),
+            "outliers": [int(i) for i in self.outliers],
         }
 
 
@@ -143,6 +192,16 @@ def fit_decay(
 
     **Returns:** a `FitResult`. Warns `IdentifiabilityWarning` when the trace cannot pin a
     parameter down; never raises for a poor fit (see `converged`).
+
+    **Outliers:** after a converged fit, the residuals of each channel (displacement, uplift) are
+    compared with their robust spread, 1.4826 x the median absolute deviation (the noise
+    standard deviation for Gaussian noise). Samples more than `OUTLIER_SIGMAS` = 6 of these
+    (and more than 1e-6 of the trace amplitude) from the median residual are outliers,
+    e.g. spikes of a faulty sensor: they are left out (`FitResult.outliers`) and the whole
+    trace is fitted again without them, largest first, until the set stops changing (at
+    most 3 refits). An `OutlierWarning` (also in `FitResult.warnings`) says so. When more
+    than 5 % of the samples would be outliers, the residuals are a misfit (a wrong minimum,
+    a wrong model), not spikes: nothing is left out.
 
     **Example:**
 
@@ -337,8 +396,11 @@ def fit_decay(
     # Growing horizon: fit the first quarter of the trace, then half, then all of it. Early
     # cycles fix r and the phase; later ones refine k_f. Masks keep every shape, so nothing
     # recompiles between stages.
-    for stage, frac in enumerate(horizons):
-        mask = jnp.asarray(t <= t[0] + frac * (t[-1] - t[0]), dtype=float)
+    keep = np.ones(t.size, bool)  # samples in the fit (False: outliers, see the stage end)
+    n_refits = 0
+    plan = list(horizons)  # the outlier check appends refits of the whole trace
+    for stage, frac in enumerate(plan):
+        mask = jnp.asarray((t <= t[0] + frac * (t[-1] - t[0])) & keep, dtype=float)
         # On the first (short) horizon k_f and r are nearly collinear (the early cycles
         # depend on r, the phase and u0); k_f is held there and freed afterwards.
         freeze_kf = stage == 0 and len(horizons) > 1 and "k_f" in params and len(params) > 1
@@ -377,6 +439,29 @@ def fit_decay(
                 bar.set_postfix(horizon=f"{frac:.2f}", loss=f"{np.nanmin(best_now):.3e}")
             if np.all(converged_flags):
                 break
+        if stage == len(plan) - 1:
+            # Outliers (spikes): residuals of the converged fit far outside the spread of
+            # the others. They pull a least-squares fit off (a few 0.3 m spikes bias k_f by
+            # 5 %): leave them out and fit the whole trace again (see _find_outliers). An
+            # unconverged fit is not checked: its residuals are a misfit, not noise.
+            z_now = np.asarray(opt_state.best_params if optimizer is None else z)
+            last = np.asarray(opt_state.best_value) if optimizer is None else vals[:, -1]
+            i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
+            res_now = respond(jnp.asarray(z_now[i_now]), "reverse")
+            if converged_flags[i_now] and int(res_now.status) == rockjax.STATUS["completed"]:
+                channels_now = [(np.asarray(res_now.u) - u_meas) / scale]
+                if up_meas is not None and uplift_weight > 0:
+                    channels_now.append(
+                        uplift_weight * (np.asarray(res_now.uplift) - up_meas) / scale)
+                found = _find_outliers(channels_now, ~keep,
+                                       t <= t[0] + horizons[-1] * (t[-1] - t[0]))
+                # more than a few is a misfit (a wrong minimum, a wrong model), not spikes
+                if (np.count_nonzero(found) <= _MAX_OUTLIER_FRACTION * t.size
+                        and not np.array_equal(found, ~keep)):
+                    keep = ~found  # after the last refit: the final statistics only
+                    if n_refits < _MAX_REFITS:
+                        n_refits += 1
+                        plan.append(horizons[-1])
     if bar is not None:
         bar.close()
 
@@ -385,7 +470,7 @@ def fit_decay(
         z_best = opt_state.best_params
     else:
         z_best = z
-    full = jnp.ones(t.size)
+    full = jnp.asarray(keep, dtype=float)  # outliers (if any) stay out
     _, _, vals_b, r_b, J_b = run_chunk(z_best, jax.vmap(opt.init)(z_best), full,
                                        jnp.ones(len(params)))
     final_losses = np.asarray(vals_b)[:, 0]
@@ -406,8 +491,8 @@ def fit_decay(
     var = np.empty(n_res)
     sig2 = []
     for ch in channels:
-        n_c = ch.stop - ch.start
-        dof_c = max(n_c - n_par * n_c / n_res, 1.0)
+        n_c = int(np.count_nonzero(keep))  # samples in the fit, per channel
+        dof_c = max(n_c - n_par / len(channels), 1.0)
         s2 = max(float(np.sum(r[ch] ** 2)) / dof_c, 1e-300)
         sig2.append(s2)
         var[ch] = s2
@@ -469,6 +554,18 @@ def fit_decay(
 
     response = respond(jnp.asarray(zb), "reverse")
     u_fit = np.asarray(response.u)
+    outliers = np.flatnonzero(~keep)
+    if outliers.size:
+        worst = outliers[np.argmax(np.abs(u_fit - u_meas)[outliers])]
+        msg = (
+            f"{outliers.size} sample(s) of the trace lie more than {OUTLIER_SIGMAS:g} robust "
+            f"standard deviations from the fit (largest displacement residual "
+            f"{abs(u_fit[worst] - u_meas[worst]):.3g} m at t = {t[worst]:.6g} s; noise "
+            f"sigma {sigma:.3g} m): they were left out and the fit repeated without them "
+            "(indices in FitResult.outliers)"
+        )
+        messages.append(msg)
+        warnings.warn(msg, OutlierWarning, stacklevel=2)
     converged = bool(converged_flags[i_best]) and np.isfinite(loss) and loss < 1e5
     return FitResult(
         names=params,
@@ -477,7 +574,7 @@ def fit_decay(
         fixed={p: vals_nat[p] for p in PARAM_NAMES if p not in params},
         correlation=np.asarray(corr),
         loss=loss,
-        rms=float(np.sqrt(np.mean((u_fit - u_meas) ** 2))),
+        rms=float(np.sqrt(np.mean((u_fit - u_meas)[keep] ** 2))),
         sigma=sigma,
         loss_history=hist,
         start_losses=final_losses,
@@ -487,4 +584,5 @@ def fit_decay(
         identifiability=ident,
         warnings=tuple(messages),
         scale=scale,
+        outliers=outliers,
     )

@@ -248,7 +248,9 @@ def _fit_trace(trace, structure, params, *, model="simplified", starts=None, pro
     initial = {k: v for k, v in initial.items() if k in params}
     kwargs = {} if starts is None else {"starts": starts}
     with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", identification.IdentifiabilityWarning)
+        shown = (identification.IdentifiabilityWarning, identification.OutlierWarning)
+        for cls in shown:
+            warnings.simplefilter("always", cls)
         fit = identification.fit_decay(
             trace,
             structure,
@@ -259,7 +261,7 @@ def _fit_trace(trace, structure, params, *, model="simplified", starts=None, pro
             **kwargs,
         )
     for w in caught:
-        if not issubclass(w.category, identification.IdentifiabilityWarning):
+        if not issubclass(w.category, shown):  # those are printed from fit.warnings
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return fit
 

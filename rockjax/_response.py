@@ -47,7 +47,7 @@ class Response(eqx.Module):
         name = self.status_name
         n = int(self.n_impacts)
         if name == "completed":
-            return f"completed: the run reached its end time ({n} impacts)"
+            return f"completed: the run reached its end time or came to rest ({n} impacts)"
         if name == "overturned":
             return (
                 f"overturned: |u| reached u_overturn at t = {float(self.t_overturn):.6g} s "
@@ -59,7 +59,8 @@ class Response(eqx.Module):
                 f"the run reached the bound of {budget} impacts"
                 if n >= budget
                 else f"the run ran out of event segments after {n} impacts (the segment "
-                f"budget grows with max_impacts = {budget}; a very stiff k_f causes this)"
+                f"budget grows with max_impacts = {budget}; a very stiff k_f causes this, "
+                "where method=\"dopri5\" is the better remedy)"
             )
             return f"max_impacts: {why}; raise max_impacts to continue"
         return (

@@ -294,6 +294,11 @@ def _simulate(structure, excitation, t1, ts, r, cfg: _Config):
         )
         (u_win, v_win), tend = sol.ys[0], sol.ts[1][-1]
         u_end, v_end = sol.ys[1][0][-1], sol.ys[1][1][-1]
+        # diffrax 0.7.2 saves inf at an output time equal to t1 when t1 is also a jump time
+        # (diffrax issue #663): outputs at the segment's end come from its final state
+        at_end = jnp.clip(win, t_start, seg_t1) == tend
+        u_win = jnp.where(at_end, u_end, u_win)
+        v_win = jnp.where(at_end, v_end, v_win)
         ok = (sol.result == dfx.RESULTS.successful) | (sol.result == dfx.RESULTS.event_occurred)
         fired = sol.event_mask & ok
         # Which event: the condition with the shortest time to its zero, |c| / |dc/dt| [s]

@@ -386,6 +386,11 @@ def _simulate_2dof(structure, model, excitation, t1, ts, r, cfg):
         )
         (q_win, qd_win), tend = sol.ys[0], sol.ts[1][-1]
         q_end, qd_end = sol.ys[1][0][-1], sol.ys[1][1][-1]
+        # outputs at the segment's end from its final state (diffrax issue #663: inf at an
+        # output time equal to t1 when t1 is also a jump time)
+        at_end = (jnp.clip(win, t_start, seg_t1) == tend)[:, None]
+        q_win = jnp.where(at_end, q_end, q_win)
+        qd_win = jnp.where(at_end, qd_end, qd_win)
         ok = (sol.result == dfx.RESULTS.successful) | (sol.result == dfx.RESULTS.event_occurred)
         fired = sol.event_mask & ok
         qdd_end = vector_field(tend, (q_end, qd_end), args)[1]

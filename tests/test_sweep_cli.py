@@ -85,7 +85,7 @@ def _direct(records):
     scale = np.repeat(SCALES, len(recs))
     record = np.tile(np.arange(len(recs)), len(SCALES))
     out = rockjax.simulate_batch(
-        rockjax.mcmanus_column(), gm, T1, scale=scale, record=record, substeps=2, summary_only=True
+        rockjax.mcmanus_column(), gm, T1, scale=scale, record=record, substeps=4, summary_only=True
     )
     return scale, record, out.to_dict()
 

@@ -271,12 +271,13 @@ def simulate_batch(
       steps to `rtol`, `atol` inside the same loop; `"diffrax"`: `rockjax.simulate` under
       `vmap` (every member waits for the slowest).
     - `substeps`: RK4 steps per record interval (default 4; for a free vibration, steps per
-      `dt`, default 1). With `"dopri5"` it only caps the step size (default 1). Accuracy against speed: the
-      peak-u error falls about 16x per halving of the step; on El Centro x1.0 it is about
-      1e-5, 1e-6, 1e-7 for 1, 2, 4, and over scales 0.1-2.0 (near overturning the
-      response is more sensitive) at worst 1e-3, 3e-4, 2e-5 (`benchmarks/results.md`).
+      `dt`, default 1). With `"dopri5"` it only caps the step size (default 1). Accuracy
+      against speed: the peak-u error falls about 16x per halving of the step; on El
+      Centro x1.0 it is about 1e-5, 1e-6, 1e-7 for 1, 2, 4, and over scales 0.1-2.0
+      (near overturning the response is more sensitive) at worst 1e-3, 3e-4, 2e-5
+      (`benchmarks/results.md`).
     - `dt` [s]: the step (and output grid) of a free vibration with `"rk4"`/`"dopri5"`
-      (default t1 / 4000).
+      (default min(t1 / 4000, 10 ms)).
     - `ts` [s]: output times (full responses only). Fast methods compute the response on
       their grid and interpolate (cubic Hermite) to `ts`.
     - `summary_only`: return a `Summary` (peak_u, peak_uplift, n_impacts, status,
@@ -338,7 +339,7 @@ def simulate_batch(
 
     # the grid: the record's samples, or dt for a free vibration
     if free:
-        dt_rec = t1f / 4000 if dt is None else float(dt)
+        dt_rec = min(t1f / 4000, 0.01) if dt is None else float(dt)
         table = np.zeros((1, 2))
     else:
         if dt is not None:
@@ -580,7 +581,7 @@ def simulate_fast(
     t1f = float(np.max(np.asarray(t1)))
     dtype = jnp.result_type(structure.B)
     if free:
-        dt_rec = t1f / 4000 if dt is None else float(dt)
+        dt_rec = min(t1f / 4000, 0.01) if dt is None else float(dt)
         table = jnp.zeros((1, 2), dtype)
         scale = jnp.ones((), dtype)
     else:

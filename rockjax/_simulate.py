@@ -459,7 +459,7 @@ def simulate(
     - `method`: `"diffrax"` (default): the event-restart diffrax solve described above.
       `"rk4"`: the fast path of `rockjax.simulate_batch`, fixed RK4 steps on the record's
       samples (`substeps` per interval, default 4; for a free vibration, `substeps`, default
-      1, steps per `dt`, default t1/4000) with each event located inside its step;
+      1, steps per `dt`, default min(t1/4000, 10 ms)) with each event located inside its step;
       `jax.grad` and `jax.jacfwd` work.
       `"dopri5"`: the same loop with adaptive Dormand–Prince 5(4) steps to `rtol`, `atol`
       (forward-mode `jax.jacfwd` only). Both need a concrete `t1`; outputs are computed on

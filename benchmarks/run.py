@@ -28,7 +28,6 @@ if "XLA_FLAGS" not in os.environ:
     os.environ["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={os.cpu_count() or 1}"
 
 import argparse  # noqa: E402
-import importlib.util  # noqa: E402
 import json  # noqa: E402
 import pathlib  # noqa: E402
 import platform  # noqa: E402
@@ -40,20 +39,13 @@ import time  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from single_run import _load_reference  # noqa: E402  (benchmarks/ is the script's dir)
 
 import rockjax  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 HERE = pathlib.Path(__file__).resolve().parent
 T1 = 40.0
-
-
-def _load_reference():
-    path = REPO / "tests" / "test_reference_scipy.py"
-    spec = importlib.util.spec_from_file_location("_rockjax_scipy_reference", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def timed(fn, repeats=5, slow=1.0):

@@ -538,15 +538,7 @@ def _hermite_resample(grid, u, v, ts):
     dtype = u.dtype
     h = (grid[i + 1] - grid[i]).astype(dtype)
     s = ((ts - grid[i]) / (grid[i + 1] - grid[i])).astype(dtype)
-    u0, u1, m0, m1 = u[..., i], u[..., i + 1], v[..., i] * h, v[..., i + 1] * h
-    s2, s3 = s * s, s * s * s
-    uu = (
-        (2 * s3 - 3 * s2 + 1) * u0
-        + (s3 - 2 * s2 + s) * m0
-        + (3 * s2 - 2 * s3) * u1
-        + (s3 - s2) * m1
-    )
-    du = (6 * s2 - 6 * s) * (u0 - u1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
+    uu, du = _fast._hermite(u[..., i], v[..., i] * h, u[..., i + 1], v[..., i + 1] * h, s)
     return uu, du / h
 
 

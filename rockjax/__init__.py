@@ -42,7 +42,8 @@ from ._restoring import (  # noqa: E402
     Simplified as Simplified,
     Smooth as Smooth,
 )
-from ._simulate import simulate as simulate  # noqa: E402
+from ._simulate import IMPACT_RULES as IMPACT_RULES, simulate as simulate  # noqa: E402
+from ._status import Status as Status  # noqa: E402
 from ._structure import (  # noqa: E402
     DERIVED as DERIVED,
     mcmanus_column as mcmanus_column,

@@ -6,8 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-STATUS = {"completed": 0, "overturned": 1, "max_impacts": 2, "solver_failure": 3}
-STATUS_NAMES = {v: k for k, v in STATUS.items()}
+from ._status import STATUS as STATUS, STATUS_NAMES as STATUS_NAMES
 
 
 class Response(eqx.Module):

@@ -12,7 +12,7 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
-from . import datasets as datasets  # noqa: E402
+from . import datasets as datasets, integrators as integrators, models as models  # noqa: E402
 from ._batch import simulate_batch as simulate_batch, Summary as Summary  # noqa: E402
 from ._excitation import (  # noqa: E402
     AbstractExcitation as AbstractExcitation,
@@ -32,23 +32,26 @@ from ._pushover import (  # noqa: E402
 )
 from ._records import read_record as read_record, Record as Record  # noqa: E402
 from ._response import Response as Response, STATUS as STATUS  # noqa: E402
-from ._restoring import (  # noqa: E402
+from .models import (  # noqa: E402
     AbstractRestoringForce as AbstractRestoringForce,
+    AbstractRockingModel as AbstractRockingModel,
     Exact as Exact,
     get_model as get_model,
     Housner as Housner,
+    IMPACT_RULES as IMPACT_RULES,
     MODELS as MODELS,
     restoring_force as restoring_force,
+    SDOF as SDOF,
     Simplified as Simplified,
     Smooth as Smooth,
+    TwoSpring2DOF as TwoSpring2DOF,
 )
-from ._simulate import IMPACT_RULES as IMPACT_RULES, simulate as simulate  # noqa: E402
+from ._simulate import simulate as simulate  # noqa: E402
 from ._status import Status as Status  # noqa: E402
 from ._structure import (  # noqa: E402
     DERIVED as DERIVED,
     mcmanus_column as mcmanus_column,
     RockingStructure as RockingStructure,
 )
-from ._twospring import TwoSpring2DOF as TwoSpring2DOF  # noqa: E402
 
 __version__ = "0.1.0"

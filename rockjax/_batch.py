@@ -1,34 +1,43 @@
 r"""Batches of simulations: `rockjax.simulate_batch`, chunked, sharded and with progress.
 
-Three integrators share one interface:
+Every model runs on three integrators (`rockjax.integrators`):
 
-- `"rk4"` (default): the fast path of `rockjax._fast`, classical RK4 on the record's grid
-  (`substeps` per record interval) with every event located inside its step;
+- `"rk4"` (default): the batched stepper, classical RK4 on the record's grid (`substeps`
+  per record interval) with every event located inside its step;
 - `"dopri5"`: the same loop with Dormand–Prince 5(4) steps under error control (`rtol`,
   `atol`), for a full time history at a set tolerance;
-- `"diffrax"`: `rockjax.simulate` (the event-restart diffrax solve) under `jax.vmap`.
+- `"diffrax"`: the event-restart diffrax solve under `jax.vmap`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import sys
 
+import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import _fast
-from ._excitation import AbstractExcitation, FreeVibration, GroundMotion
-from ._kinematics import theta_from_u, uplift
-from ._response import Response, STATUS_NAMES
-from ._restoring import get_model
-from ._structure import _FIELDS, RockingStructure
+from ._checks import (
+    check_float64,
+    check_scene,
+    check_settings,
+    default_substeps,
+    free_vibration_dt,
+)
+from ._excitation import FreeVibration, GroundMotion
+from ._response import Response
+from ._simulate import resample_outputs
+from ._status import STATUS_NAMES
+from ._structure import FIELDS, RockingStructure
+from .integrators import RestartConfig, run, solve, StepperConfig
+from .models import get_model
 
 METHODS = ("rk4", "dopri5", "diffrax")
-_MEMBER = ("scale", "u0", "v0", "r", "record")
 
 
 class Summary(eqx.Module):
@@ -76,64 +85,36 @@ def _length(name, x):
     )
 
 
-def _resolve(structure, excitation, scale, r, u0, v0, record):
-    """The batch: N and each per-member input as a scalar or an (N,) array."""
-    if not isinstance(structure, RockingStructure):
-        raise ValueError(f"structure must be a RockingStructure, got {type(structure).__name__}")
-    if not isinstance(excitation, AbstractExcitation):
+def _records(excitation, record):
+    """The record table (n_records, n_samples) [m/s²] and the per-member record index."""
+    if np.ndim(excitation.dt) != 0:
         raise ValueError(
-            f"excitation must be a FreeVibration or GroundMotion, got {type(excitation).__name__}"
+            "the records of a batch must share one time step: dt must be a "
+            "scalar (resample the records to a common dt)"
         )
-    free = isinstance(excitation, FreeVibration)
-    if not free and not isinstance(excitation, GroundMotion):
-        raise ValueError("simulate_batch supports FreeVibration and GroundMotion excitations")
-    members = {}
-    if free:
-        members["u0"] = excitation.u0 if u0 is None else u0
-        members["v0"] = excitation.v0 if v0 is None else v0
-        if scale is not None or record is not None:
-            raise ValueError("scale and record apply to a GroundMotion, not a FreeVibration")
-        members["scale"] = 1.0
-        members["record"] = 0
-        table = None
-    else:
-        members["u0"] = excitation.u0 if u0 is None else u0
-        members["v0"] = excitation.v0 if v0 is None else v0
-        members["scale"] = excitation.scale if scale is None else scale
-        if np.ndim(excitation.dt) != 0:
-            raise ValueError(
-                "the records of a batch must share one time step: dt must be a "
-                "scalar (resample the records to a common dt)"
-            )
-        acc = np.asarray(excitation.accel)
-        if acc.ndim == 1:
-            acc = acc[None]
-        elif acc.ndim != 2:
-            raise ValueError(
-                f"accel must be 1-D (one record) or 2-D (records x samples), got shape {acc.shape}"
-            )
-        if record is None:
-            record = 0 if acc.shape[0] == 1 else np.arange(acc.shape[0])
-        rec = np.asarray(record)
-        if (
-            not np.issubdtype(rec.dtype, np.integer)
-            or np.any(rec < 0)
-            or np.any(rec >= acc.shape[0])
-        ):
-            raise ValueError(
-                f"record must hold integer indices into the {acc.shape[0]} "
-                f"record(s) of excitation.accel, got {rec}"
-            )
-        members["record"] = rec
-        table = acc
-    members["r"] = structure.restitution if r is None else r
+    acc = np.asarray(excitation.accel)
+    if acc.ndim == 1:
+        acc = acc[None]
+    elif acc.ndim != 2:
+        raise ValueError(
+            f"accel must be 1-D (one record) or 2-D (records x samples), got shape {acc.shape}"
+        )
+    if record is None:
+        record = 0 if acc.shape[0] == 1 else np.arange(acc.shape[0])
+    rec = np.asarray(record)
+    if not np.issubdtype(rec.dtype, np.integer) or np.any(rec < 0) or np.any(rec >= acc.shape[0]):
+        raise ValueError(
+            f"record must hold integer indices into the {acc.shape[0]} "
+            f"record(s) of excitation.accel, got {rec}"
+        )
+    return acc, rec
+
+
+def _batch_length(structure, members):
+    """N: the common length of every batched input (1 if none is batched)."""
     lengths = {}
-    for name, x in members.items():
+    for name, x in [*members.items(), *((k, getattr(structure, k)) for k in FIELDS)]:
         n = _length(name, x)
-        if n is not None and n != 1:
-            lengths[name] = n
-    for name in _FIELDS:
-        n = _length(name, getattr(structure, name))
         if n is not None and n != 1:
             lengths[name] = n
     sizes = set(lengths.values())
@@ -143,7 +124,27 @@ def _resolve(structure, excitation, scale, r, u0, v0, record):
             f"batched inputs must all have the same length ({detail}); build the "
             "combinations first, e.g. with numpy.meshgrid"
         )
-    N = sizes.pop() if sizes else 1
+    return sizes.pop() if sizes else 1
+
+
+def _resolve(structure, excitation, scale, r, u0, v0, record):
+    """The batch: N, each per-member input as a scalar or an (N,) array, the table."""
+    check_scene(structure, excitation)
+    free = isinstance(excitation, FreeVibration)
+    members = {
+        "u0": excitation.u0 if u0 is None else u0,
+        "v0": excitation.v0 if v0 is None else v0,
+    }
+    if free:
+        if scale is not None or record is not None:
+            raise ValueError("scale and record apply to a GroundMotion, not a FreeVibration")
+        members.update(scale=1.0, record=0)
+        table = None
+    else:
+        members["scale"] = excitation.scale if scale is None else scale
+        table, members["record"] = _records(excitation, record)
+    members["r"] = structure.restitution if r is None else r
+    N = _batch_length(structure, members)
     for name, x in members.items():
         a = np.asarray(x)
         if name != "record" and not np.all(np.isfinite(a)):
@@ -154,70 +155,52 @@ def _resolve(structure, excitation, scale, r, u0, v0, record):
     return N, members, table, free
 
 
-def _take(x, sl, N):
-    """Slice one chunk of a per-member input (scalars are shared)."""
-    a = np.asarray(x)
-    if a.ndim == 0:
-        return a
-    if a.shape[0] == 1:
-        return a[0]
-    return a[sl]
-
-
 @functools.cache
-def _sharded(n_devices):
+def _mesh(n_devices):
     devices = np.array(jax.local_devices()[:n_devices])
     return jax.sharding.Mesh(devices, ("batch",))
 
 
-def _fast_chunk(batched, shared, table, dt_rec, t1, cfg, n_devices):
-    """Run one chunk through the fast integrator, split over `n_devices` local devices."""
+def _member_structure(vals):
+    return RockingStructure(**{k: vals[k] for k in FIELDS})
+
+
+def _stepper_chunk(model, batched, shared, table, dt_rec, t1, cfg, n_devices):
+    """Run one chunk on the batched stepper, split over `n_devices` local devices."""
 
     def kernel(batched):
         vals = {**shared, **batched}
-        s = RockingStructure(**{k: vals[k] for k in _FIELDS})
-        out = _fast.run(s, table, vals["record"], dt_rec, vals["scale"], vals["u0"],
-                        vals["v0"], vals["r"], t1, cfg)
-        if cfg.full:  # batch axis first, as the sharding (and every other output) has it
-            out = dict(out, u=out["u"].T, v=out["v"].T)
-        return out
+        n = next(iter(batched.values())).shape[0]
+        u0, v0 = (jnp.broadcast_to(vals[k], (n,)) for k in ("u0", "v0"))
+        return run(model, _member_structure(vals), table, vals["record"], dt_rec,
+                   vals["scale"], u0, v0, vals["r"], t1, cfg)
 
     if n_devices == 1:
         return kernel(batched)
     P = jax.sharding.PartitionSpec
-    mesh = _sharded(n_devices)
     # shard_map, not automatic partitioning: each device runs its own loop, and the
     # "does any member need another piece" tests stay local (no cross-device sync per step)
-    f = jax.shard_map(
-        kernel, mesh=mesh, in_specs=(P("batch"),), out_specs=P("batch"), check_vma=False
-    )
+    f = jax.shard_map(kernel, mesh=_mesh(n_devices), in_specs=(P("batch"),),
+                      out_specs=P("batch"), check_vma=False)
     return f(batched)
 
 
-_fast_chunk_jit = eqx.filter_jit(_fast_chunk)
-
-
-def _diffrax_chunk(batched, shared, table, dt_rec, t1, ts, cfg, free):
-    from ._simulate import _simulate
+def _diffrax_chunk(model, batched, shared, table, dt_rec, t1, ts, cfg, free):
+    """Run one chunk through the event-restart integrator under `jax.vmap`."""
 
     def one(b):
         vals = {**shared, **b}
-        s = RockingStructure(**{k: vals[k] for k in _FIELDS})
         if free:
             exc = FreeVibration(vals["u0"], vals["v0"])
         else:
-            exc = GroundMotion(
-                dt=dt_rec,
-                accel=table[vals["record"]],
-                scale=vals["scale"],
-                u0=vals["u0"],
-                v0=vals["v0"],
-            )
-        return _simulate(s, exc, t1, ts, vals["r"], cfg)
+            exc = GroundMotion(dt=dt_rec, accel=table[vals["record"]], scale=vals["scale"],
+                               u0=vals["u0"], v0=vals["v0"])
+        return solve(model, _member_structure(vals), exc, t1, ts, vals["r"], cfg)
 
     return jax.vmap(one)(batched)
 
 
+_stepper_chunk_jit = eqx.filter_jit(_stepper_chunk)
 _diffrax_chunk_jit = eqx.filter_jit(_diffrax_chunk)
 
 
@@ -227,6 +210,66 @@ def _progress(total, enabled, desc):
     from tqdm.auto import tqdm
 
     return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, leave=False)
+
+
+class _Plan(eqx.Module):
+    """What a batch runs: the model, its grid and the integrator's settings (static)."""
+
+    model: object
+    method: str = eqx.field(static=True)
+    free: bool = eqx.field(static=True)
+    dt_rec: float = eqx.field(static=True)
+    t1: float = eqx.field(static=True)
+    grid: np.ndarray = eqx.field(static=True)
+    cfg: object
+    n_devices: int = eqx.field(static=True)
+    chunk: int = eqx.field(static=True)
+
+
+def _split(members, structure, N, dtype):
+    """(names of the batched inputs, their values, the shared inputs as arrays)."""
+    values = dict(members)
+    values.update({k: getattr(structure, k) for k in FIELDS})
+    batched = [k for k, v in values.items() if np.ndim(v) == 1 and np.shape(v)[0] != 1]
+    shared = {}
+    for k, v in values.items():
+        if k not in batched:
+            a = np.asarray(v)
+            shared[k] = jnp.asarray(a.reshape(()) if a.size == 1 else a,
+                                    jnp.int32 if k == "record" else dtype)
+    if not batched:  # one run: still a batch of N = 1 through the same code
+        batched = ["u0"]
+        values["u0"] = np.reshape(np.asarray(values["u0"]), (1,))
+        shared.pop("u0")
+    return batched, values, shared
+
+
+def _run_chunks(plan, N, names, values, shared, table, ts_d, dtype, progress):
+    """Every chunk through its compiled kernel (the last padded), with a progress bar."""
+    n_chunks = math.ceil(N / plan.chunk)
+    bar = _progress(N, progress if progress is not None else n_chunks > 1, f"{plan.method} batch")
+    parts = []
+    try:
+        for i in range(n_chunks):
+            lo = i * plan.chunk
+            idx = np.minimum(np.arange(lo, lo + plan.chunk), N - 1)  # pad the last chunk
+            batched = {k: jnp.asarray(np.asarray(values[k])[idx],
+                                      jnp.int32 if k == "record" else dtype) for k in names}
+            dt_rec, t1 = jnp.asarray(plan.dt_rec, dtype), jnp.asarray(plan.t1, dtype)
+            if plan.method == "diffrax":
+                out = _diffrax_chunk_jit(plan.model, batched, shared, table, dt_rec, t1,
+                                         jnp.asarray(ts_d, dtype), plan.cfg, plan.free)
+            else:
+                out = _stepper_chunk_jit(plan.model, batched, shared, table, dt_rec, t1,
+                                         plan.cfg, plan.n_devices)
+            n_keep = min(plan.chunk, N - lo)
+            parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[:n_keep], out))
+            if bar is not None:
+                bar.update(n_keep)
+    finally:
+        if bar is not None:
+            bar.close()
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def simulate_batch(
@@ -265,7 +308,8 @@ def simulate_batch(
 
     **Arguments:**
 
-    - `structure`, `excitation`, `t1` [s], `model`, `impact`, `r`: as `rockjax.simulate`.
+    - `structure`, `excitation`, `t1` [s], `model`, `impact`, `r`: as `rockjax.simulate`;
+      every model runs on every method, the 2-DOF body (`"two_spring_2dof"`) included.
     - `method`: `"rk4"` (default) fixed steps of the record's dt / `substeps` with events
       located inside each step (the fast path); `"dopri5"`: adaptive Dormand–Prince 5(4)
       steps to `rtol`, `atol` inside the same loop; `"diffrax"`: `rockjax.simulate` under
@@ -283,7 +327,8 @@ def simulate_batch(
     - `summary_only`: return a `Summary` (peak_u, peak_uplift, n_impacts, status,
       t_overturn) and store no time history.
     - `max_pieces`: event-localised pieces per step (default 4 for rk4, 32 for the rigid
-      `housner` model, whose settling impacts crowd; 4096 for dopri5).
+      `housner` model, whose settling impacts crowd, 8 for the 2-DOF body; 4096 for
+      dopri5).
     - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
       padded, so every chunk reuses one compilation. Default: 8192 summaries, or as many
       full responses as fit in about 256 MB.
@@ -308,38 +353,57 @@ def simulate_batch(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    from ._simulate import IMPACT_RULES
+    check_settings(method=method, rtol=rtol, atol=atol, max_impacts=max_impacts, dt=dt,
+                   substeps=substeps)
+    model = get_model(model, impact)
+    t1f = _check_t1(t1)
+    N, members, table, free = _resolve(structure, excitation, scale, r, u0, v0, record)
+    dtype = jnp.result_type(structure.B)
+    check_float64(method, dtype)
+    _check_ts(ts, summary_only, t1f)
+    dt_rec, grid, table = _grid(excitation, table, free, t1f, dt)
+    n_dev = _devices(devices)
+    n_out = len(grid) if ts is None else len(ts)
+    chunk = _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev)
+    plan = _Plan(
+        model=model, method=method, free=free, dt_rec=dt_rec, t1=t1f, grid=grid,
+        cfg=_config(model, method, free, len(grid) - 1, summary_only, max_impacts,
+                    max_pieces, substeps, rtol, atol),
+        n_devices=n_dev, chunk=chunk,
+    )
+    names, values, shared = _split(members, structure, N, dtype)
+    ts_d = grid if ts is None else np.asarray(ts, float)
+    res = _run_chunks(plan, N, names, values, shared, jnp.asarray(table, dtype), ts_d, dtype,
+                      progress)
+    return _assemble(plan, res, structure, N, ts, summary_only)
 
-    if impact not in IMPACT_RULES:
-        raise ValueError(f"impact must be one of {IMPACT_RULES}, got {impact!r}")
-    model = get_model(model)
-    if model.two_dof:
-        raise ValueError("model two_spring_2dof is not batched: run it with rockjax.simulate "
-                         "(simulate_batch takes the SDOF models)")
+
+def _check_t1(t1):
     t1f = np.asarray(t1, dtype=float)
     if t1f.ndim != 0 or not np.isfinite(t1f) or not t1f > 0:
         raise ValueError(f"t1 must be a positive, finite scalar, got {t1f}")
-    t1f = float(t1f)
-    if substeps is not None and not (isinstance(substeps, int) and substeps >= 1):
-        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
-    if not (isinstance(max_impacts, int) and max_impacts >= 1):
-        raise ValueError(f"max_impacts must be a positive integer, got {max_impacts!r}")
-    for name, val in (("rtol", rtol), ("atol", atol)):
-        if not (isinstance(val, (int, float)) and val > 0):
-            raise ValueError(f"{name} must be a positive number, got {val!r}")
-    if dt is not None and not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
-    N, members, table, free = _resolve(structure, excitation, scale, r, u0, v0, record)
-    if substeps is None:
-        substeps = 1 if (free or method != "rk4") else 4  # dopri5 chooses its own steps
-    dtype = jnp.result_type(structure.B)
-    if method == "diffrax" and dtype != jnp.float64:
-        raise ValueError(f"method 'diffrax' runs in float64; this structure is {dtype}: use "
-                         "method='rk4' or 'dopri5' for float32")
+    return float(t1f)
 
-    # the grid: the record's samples, or dt for a free vibration
+
+def _check_ts(ts, summary_only, t1f):
+    if ts is None:
+        return
+    if summary_only:
+        raise ValueError("ts applies to full responses, not with summary_only=True")
+    tsn = np.asarray(ts, dtype=float)
+    if tsn.ndim != 1 or tsn.size < 1 or not np.all(np.isfinite(tsn)):
+        raise ValueError("ts must be a 1-D array of finite output times")
+    if tsn.size > 1 and not np.all(np.diff(tsn) > 0):
+        raise ValueError("ts must be strictly increasing")
+    if tsn[0] < 0 or tsn[-1] > t1f * (1 + 1e-12):
+        raise ValueError(f"ts must lie within [0, t1] = [0, {t1f}]")
+
+
+def _grid(excitation, table, free, t1f, dt):
+    """(step [s], the grid [s], the record table padded past t1): the record's samples,
+    or dt for a free vibration."""
     if free:
-        dt_rec = min(t1f / 4000, 0.01) if dt is None else float(dt)
+        dt_rec = free_vibration_dt(t1f, dt)
         table = np.zeros((1, 2))
     else:
         if dt is not None:
@@ -350,181 +414,57 @@ def simulate_batch(
         dt_rec = float(np.asarray(excitation.dt))
     n_steps = int(math.ceil(t1f / dt_rec - 1e-9))
     grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
-    if ts is not None:
-        if summary_only:
-            raise ValueError("ts applies to full responses, not with summary_only=True")
-        tsn = np.asarray(ts, dtype=float)
-        if tsn.ndim != 1 or tsn.size < 1 or not np.all(np.isfinite(tsn)):
-            raise ValueError("ts must be a 1-D array of finite output times")
-        if tsn.size > 1 and not np.all(np.diff(tsn) > 0):
-            raise ValueError("ts must be strictly increasing")
-        if tsn[0] < 0 or tsn[-1] > t1f * (1 + 1e-12):
-            raise ValueError(f"ts must lie within [0, t1] = [0, {t1f}]")
     if not free:
         n_tab = max(table.shape[1], n_steps + 2)
         table = np.concatenate([table, np.zeros((table.shape[0], n_tab - table.shape[1]))], 1)
+    return dt_rec, grid, table
 
+
+def _devices(devices):
     n_dev = len(jax.local_devices()) if devices is None else int(devices)
     if not 1 <= n_dev <= len(jax.local_devices()):
         raise ValueError(
             f"devices must be between 1 and {len(jax.local_devices())}, got {devices!r}"
         )
-    n_out = len(grid) if ts is None else len(ts)
+    return n_dev
+
+
+def _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev):
+    """Runs per compiled call: 8192 summaries, or as many full responses as fit in about
+    256 MB; a multiple of the device count."""
     if chunk_size is None:
         if summary_only:
             chunk_size = 8192
         else:
-            chunk_size = max(1, min(8192, int(2**28 // (16 * (n_out + max_impacts)))))
+            chunk_size = max(1, min(8192, int(2**28 // (32 * (n_out + max_impacts)))))
     if not (isinstance(chunk_size, int) and chunk_size >= 1):
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    chunk = min(chunk_size, N)
-    chunk = n_dev * math.ceil(chunk / n_dev)
-    n_chunks = math.ceil(N / chunk)
+    return n_dev * math.ceil(min(chunk_size, N) / n_dev)
+
+
+def _config(model, method, free, n_steps, summary_only, max_impacts, max_pieces, substeps,
+            rtol, atol):
+    """The integrator's static settings."""
+    if method == "diffrax":
+        return RestartConfig(
+            solver=dfx.Tsit5(), rtol=float(rtol), atol=float(atol), max_steps=16384,
+            max_impacts=max_impacts, adjoint="forward", use_jump_ts=True, dt=None,
+        )
     if max_pieces is None:
-        # a settling rigid block (housner) has many impacts per step; others a few at most
-        max_pieces = (32 if model.rigid else 4) if method == "rk4" else 4096
+        max_pieces = model.default_max_pieces() if method == "rk4" else 4096
     if not (isinstance(max_pieces, int) and max_pieces >= 2):
         raise ValueError(f"max_pieces must be an integer >= 2, got {max_pieces!r}")
-
-    batched_names = [k for k, v in members.items() if np.ndim(v) == 1 and np.shape(v)[0] != 1]
-    batched_names += [
-        k
-        for k in _FIELDS
-        if np.ndim(getattr(structure, k)) == 1 and np.shape(getattr(structure, k))[0] != 1
-    ]
-    values = dict(members)
-    values.update({k: getattr(structure, k) for k in _FIELDS})
-    shared = {}
-    for k, v in values.items():
-        if k in batched_names:
-            continue
-        a = np.asarray(v)
-        a = a.reshape(()) if a.size == 1 else a
-        shared[k] = jnp.asarray(a, jnp.int32 if k == "record" else dtype)
-    if not batched_names:  # one run: still batch of N = 1 through the same code
-        batched_names = ["u0"]
-        values["u0"] = np.reshape(np.asarray(values["u0"]), (1,))
-        shared.pop("u0")
-
-    if method == "diffrax":
-        from ._simulate import _Config, _default_solver
-
-        dcfg = _Config(
-            model=model,
-            impact=impact,
-            solver=_default_solver(),
-            rtol=float(rtol),
-            atol=float(atol),
-            max_steps=16384,
-            max_impacts=max_impacts,
-            adjoint="forward",
-            use_jump_ts=True,
-            dt=None,
-        )
-        ts_d = grid if ts is None else np.asarray(ts, float)
-    else:
-        fcfg = _fast.FastConfig(
-            model=model,
-            impact=impact,
-            method="fixed" if method == "rk4" else "adaptive",
-            substeps=substeps,
-            n_steps=n_steps,
-            free=free,
-            full=not summary_only,
-            max_impacts=max_impacts,
-            max_pieces=max_pieces,
-            rtol=float(rtol),
-            atol=float(atol),
-        )
-    table_j = jnp.asarray(table, dtype)
-    bar = _progress(N, progress if progress is not None else n_chunks > 1, f"{method} batch")
-    parts = []
-    try:
-        for i in range(n_chunks):
-            lo = i * chunk
-            idx = np.minimum(np.arange(lo, lo + chunk), N - 1)  # pad the last chunk
-            batched = {}
-            for k in batched_names:
-                a = np.asarray(values[k])[idx]
-                batched[k] = jnp.asarray(a, jnp.int32 if k == "record" else dtype)
-            if method == "diffrax":
-                res = _diffrax_chunk_jit(
-                    batched,
-                    shared,
-                    table_j,
-                    jnp.asarray(dt_rec, dtype),
-                    jnp.asarray(t1f, dtype),
-                    jnp.asarray(ts_d, dtype),
-                    dcfg,
-                    free,
-                )
-                out = dict(
-                    peak_u=res.peak_u,
-                    n_impacts=res.n_impacts,
-                    status=res.status,
-                    t_overturn=res.t_overturn,
-                )
-                if not summary_only:
-                    out.update(u=res.u, v=res.v, impact_times=res.impact_times)
-            else:
-                out = _fast_chunk_jit(
-                    batched,
-                    shared,
-                    table_j,
-                    jnp.asarray(dt_rec, dtype),
-                    jnp.asarray(t1f, dtype),
-                    fcfg,
-                    n_dev,
-                )
-            n_keep = min(chunk, N - lo)
-            parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[:n_keep], out))
-            if bar is not None:
-                bar.update(n_keep)
-    finally:
-        if bar is not None:
-            bar.close()
-    res = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    rigid = model.rigid
-    s_ns = structure
-    peak = jnp.asarray(res["peak_u"])
-    summary = Summary(
-        peak_u=peak,
-        peak_uplift=_per_member(lambda st, p: uplift(st, p, rigid=rigid), s_ns, peak, N),
-        n_impacts=jnp.asarray(res["n_impacts"]),
-        status=jnp.asarray(res["status"]),
-        t_overturn=jnp.asarray(res["t_overturn"]),
-    )
-    if summary_only:
-        return summary
-    u, v = res["u"], res["v"]
-    if method != "diffrax":
-        if ts is not None:
-            u, v = _hermite_resample(grid, u, v, np.asarray(ts, float))
-            out_ts = np.asarray(ts, float)
-        else:
-            out_ts = grid
-    else:
-        out_ts = ts_d
-    u = jnp.asarray(u)
-    return Response(
-        ts=jnp.asarray(out_ts),
-        u=u,
-        v=jnp.asarray(v),
-        theta=_per_member(lambda st, x: theta_from_u(st, x, rigid=rigid), structure, u, N),
-        uplift=_per_member(lambda st, x: uplift(st, x, rigid=rigid), structure, u, N),
-        impact_times=jnp.asarray(res["impact_times"]),
-        n_impacts=summary.n_impacts,
-        peak_u=summary.peak_u,
-        peak_uplift=summary.peak_uplift,
-        status=summary.status,
-        t_overturn=summary.t_overturn,
+    return StepperConfig(
+        method=method, substeps=default_substeps(substeps, free, method), n_steps=n_steps,
+        forced=not free, full=not summary_only, max_impacts=max_impacts,
+        max_pieces=max_pieces, rtol=float(rtol), atol=float(atol),
     )
 
 
 def _per_member(fn, structure, x, N):
     """fn(structure, x) with structure fields of shape (N,) lined up with x's first axis."""
     fields = {}
-    for k in _FIELDS:
+    for k in FIELDS:
         a = jnp.asarray(getattr(structure, k))
         if a.ndim == 1 and a.shape[0] == N and N != 1:
             a = a.reshape((N,) + (1,) * (x.ndim - 1))
@@ -532,109 +472,16 @@ def _per_member(fn, structure, x, N):
     return fn(RockingStructure(**fields), x)
 
 
-def _hermite_resample(grid, u, v, ts):
-    """Cubic Hermite interpolation of (u, v) from the grid to ts (last axis)."""
-    i = np.clip(np.searchsorted(grid, ts, side="right") - 1, 0, len(grid) - 2)
-    dtype = u.dtype
-    h = (grid[i + 1] - grid[i]).astype(dtype)
-    s = ((ts - grid[i]) / (grid[i + 1] - grid[i])).astype(dtype)
-    uu, du = _fast._hermite(u[..., i], v[..., i] * h, u[..., i + 1], v[..., i + 1] * h, s)
-    return uu, du / h
-
-
-_run_jit = eqx.filter_jit(_fast.run)
-
-
-def simulate_fast(
-    structure,
-    excitation,
-    t1,
-    ts,
-    r,
-    *,
-    model,
-    impact,
-    method,
-    substeps,
-    dt,
-    rtol,
-    atol,
-    max_impacts,
-    max_pieces,
-):
-    """One run of the fast integrator, traceable (for `rockjax.simulate(method=...)`)."""
-    free = isinstance(excitation, FreeVibration)
-    if not free and not isinstance(excitation, GroundMotion):
-        raise ValueError("method 'rk4'/'dopri5' supports FreeVibration and GroundMotion")
-    if substeps is None:
-        substeps = 1 if (free or method != "rk4") else 4  # dopri5 chooses its own steps
-    if isinstance(t1, jax.core.Tracer):
-        raise ValueError("t1 must be a concrete number with method 'rk4' or 'dopri5'")
-    t1f = float(np.max(np.asarray(t1)))
-    dtype = jnp.result_type(structure.B)
-    if free:
-        dt_rec = min(t1f / 4000, 0.01) if dt is None else float(dt)
-        table = jnp.zeros((1, 2), dtype)
-        scale = jnp.ones((), dtype)
-    else:
-        if isinstance(excitation.dt, jax.core.Tracer):
-            raise ValueError("the record's dt must be concrete with method 'rk4' or 'dopri5'")
-        if dt is not None:
-            raise ValueError(
-                "dt applies to a free vibration; a ground motion is integrated "
-                "on its record's samples (use substeps to refine)"
-            )
-        dt_rec = float(np.asarray(excitation.dt))
-        scale = excitation.scale
-    n_steps = int(math.ceil(t1f / dt_rec - 1e-9))
-    if not free:
-        acc = jnp.asarray(excitation.accel, dtype)
-        pad = max(0, n_steps + 2 - acc.shape[-1])
-        table = jnp.concatenate([acc, jnp.zeros((pad,), dtype)])[None]
-    grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
-    u0, v0 = excitation.initial_state()
-    cfg = _fast.FastConfig(
-        model=get_model(model),
-        impact=impact,
-        method="fixed" if method == "rk4" else "adaptive",
-        substeps=substeps,
-        n_steps=n_steps,
-        free=free,
-        full=True,
-        max_impacts=max_impacts,
-        max_pieces=((32 if get_model(model).rigid else 4) if method == "rk4" else 4096)
-        if max_pieces is None else max_pieces,
-        rtol=float(rtol),
-        atol=float(atol),
-    )
-    out = _run_jit(
-        structure,
-        table,
-        jnp.zeros((1,), jnp.int32),
-        jnp.asarray(dt_rec, dtype),
-        jnp.asarray(scale, dtype),
-        jnp.reshape(jnp.asarray(u0, dtype), (1,)),
-        jnp.reshape(jnp.asarray(v0, dtype), (1,)),
-        jnp.asarray(r, dtype),
-        jnp.asarray(t1f, dtype),
-        cfg,
-    )
-    u, v = out["u"][:, 0], out["v"][:, 0]
-    ts_n = grid if ts is None else np.asarray(ts, float)
-    if ts is not None and not (ts_n.shape == grid.shape and np.array_equal(ts_n, grid)):
-        u, v = _hermite_resample(grid, u, v, ts_n)
-    rigid = cfg.model.rigid
-    peak = out["peak_u"][0]
-    return Response(
-        ts=jnp.asarray(ts_n, dtype),
-        u=u,
-        v=v,
-        theta=theta_from_u(structure, u, rigid=rigid),
-        uplift=uplift(structure, u, rigid=rigid),
-        impact_times=out["impact_times"][0],
-        n_impacts=out["n_impacts"][0],
-        peak_u=peak,
-        peak_uplift=uplift(structure, peak, rigid=rigid),
-        status=out["status"][0],
-        t_overturn=out["t_overturn"][0],
-    )
+def _assemble(plan, res, structure, N, ts, summary_only):
+    """A Summary, or a Response with a leading batch axis of length N."""
+    summary = Summary(**{k: jnp.asarray(res[k]) for k in
+                         ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn")})
+    if summary_only:
+        return summary
+    out = {k: res[k] for k in ("u", "v", "theta", "uplift", "impact_times")}
+    out_ts = plan.grid if ts is None else np.asarray(ts, float)
+    if plan.method != "diffrax" and ts is not None:
+        out = resample_outputs(plan.grid, out, out_ts, lambda u: _per_member(
+            plan.model.theta_uplift_of_u, structure, jnp.asarray(u), N))
+    return Response(ts=jnp.asarray(out_ts), **{k: jnp.asarray(v) for k, v in out.items()},
+                    **{f.name: getattr(summary, f.name) for f in dataclasses.fields(summary)})

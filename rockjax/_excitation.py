@@ -25,6 +25,15 @@ class AbstractExcitation(eqx.Module):
         """Times [s] where the forcing has kinks, for the step-size controller (or None)."""
         return None
 
+    @property
+    def forced(self) -> bool:
+        """Whether a ground motion acts (static)."""
+        return False
+
+    def first_direction(self):
+        """Direction (+1 or -1) of the first motion from rest (+1 without forcing)."""
+        return jnp.ones(())
+
 
 class FreeVibration(AbstractExcitation):
     r"""Release from a displacement `u0` [m] with velocity `v0` [m/s], no ground motion.
@@ -115,8 +124,14 @@ class GroundMotion(AbstractExcitation):
     def jump_times(self):
         return self.dt * jnp.arange(self.accel.shape[-1], dtype=self.dt.dtype)
 
+    @property
+    def forced(self) -> bool:
+        return True
+
     def first_direction(self):
-        """Sign of the first motion from rest: opposite to the first non-zero sample."""
+        """Direction of the first motion from rest: opposite to the first non-zero sample
+        (+1 for an all-zero record)."""
         a = self.accel
         nz = jnp.argmax(a != 0)
-        return -jnp.sign(self.scale * a[nz])
+        d = -jnp.sign(self.scale * a[nz])
+        return jnp.where(d == 0, 1.0, d)

@@ -20,7 +20,7 @@ def pushover_curves(structure, umax=None, n=401):
     import jax.numpy as jnp
 
     from ._pushover import pushover
-    from ._restoring import restoring_force
+    from .models import restoring_force
 
     s = structure
     if umax is None:

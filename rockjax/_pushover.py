@@ -58,7 +58,7 @@ def _spring_forces(s, y_o, theta):
     return s.k_f * jnp.maximum(-y_left, 0.0), s.k_f * jnp.maximum(-y_right, 0.0), y_left
 
 
-def _lift_off(s):
+def lift_off_rotation(s):
     """Solve for the rotation at which the left spring unloads (both springs in contact)."""
 
     def fn(z, _):
@@ -111,7 +111,7 @@ def _equilibrium(s, a, theta_lift):
 @eqx.filter_jit
 def _pushover(structure, u):
     s = structure
-    theta_lift = _lift_off(s)
+    theta_lift = lift_off_rotation(s)
 
     def one(ui):
         a = jnp.abs(ui)
@@ -172,7 +172,7 @@ def overturn_displacement(structure):
     form `structure.u_overturn`.
     """
     s = structure
-    theta_lift = _lift_off(s)
+    theta_lift = lift_off_rotation(s)
 
     def fn(a, _):
         (_, _, P), _ = _equilibrium(s, a, theta_lift)

@@ -11,7 +11,9 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-_FIELDS = ("m_e", "m_b", "H_e", "H_b", "B", "I_eg", "I_bg", "k_f", "g")
+#: the fields of a RockingStructure, in order
+FIELDS = ("m_e", "m_b", "H_e", "H_b", "B", "I_eg", "I_bg", "k_f", "g")
+_FIELDS = FIELDS
 
 
 def _as_float_array(x: ArrayLike) -> Float[Array, "..."]:
@@ -259,6 +261,12 @@ class RockingStructure(eqx.Module):
         r"""Rotary inertia of the whole body about a base corner [kg m²]."""
         return self.I_eg + self.m_e * self.R_e**2 + self.I_bg + self.m_b * self.R_b**2
 
+    def evaluated(self) -> Evaluated:
+        """Every field and derived quantity evaluated once, as a pytree with the same
+        attribute names (for integrator loops, which would otherwise recompute the derived
+        quantities at every step)."""
+        return Evaluated({k: getattr(self, k) for k in (*_FIELDS, *DERIVED, "mass", "I_O")})
+
     def derived(self) -> dict[str, float]:
         """Every derived quantity as a Python float (angles in rad, also in deg as `*_deg`)."""
         out = {}
@@ -267,6 +275,22 @@ class RockingStructure(eqx.Module):
         for name in ("alpha_c", "alpha_e", "alpha_b", "theta_crit"):
             out[name + "_deg"] = float(jnp.degrees(getattr(self, name)))
         return out
+
+
+@jax.tree_util.register_pytree_node_class
+class Evaluated:
+    """A structure's fields and derived quantities as plain attributes (a pytree)."""
+
+    def __init__(self, values: dict):
+        self.__dict__.update(values)
+
+    def tree_flatten(self):
+        keys = tuple(sorted(self.__dict__))
+        return [self.__dict__[k] for k in keys], keys
+
+    @classmethod
+    def tree_unflatten(cls, keys, leaves):
+        return cls(dict(zip(keys, leaves)))
 
 
 DERIVED = (

@@ -1,20 +1,23 @@
 r"""Closed-form restoring forces $k(u)$ of the SDOF Eq. 1 (paper §3.3, Eqs 13–20).
 
-Each model is an equinox Module: abstract `AbstractRestoringForce`, final `Simplified`,
+Each law is an equinox Module: abstract `AbstractRestoringForce`, final `Simplified`,
 `Exact`, `Smooth` and `Housner`. All are odd in $u$, vectorised over $u$ and
-differentiable with respect to $u$ and every structure field.
+differentiable with respect to $u$ and every structure field. A law is only $k(u)$; the
+SDOF rocking model (`rockjax.models.SDOF`) adds the impact rule and the events.
 """
 
 from __future__ import annotations
 
 import abc
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._kinematics import theta_from_u
+from .._kinematics import theta_from_u
+from .._pushover import pushover
 
 
 def _is_traced(x):
@@ -34,43 +37,24 @@ def _simplified_post(structure, a):
 
 
 class AbstractRestoringForce(eqx.Module):
-    """A restoring-force law $k(u)$ [N] of the SDOF equation of motion (Eq. 1)."""
+    """A restoring-force law $k(u)$ [N] of the SDOF equation of motion (Eq. 1).
+
+    `rigid` (class variable) is True for a rigid interface, which has no pre-uplift phase.
+    """
+
+    rigid: ClassVar[bool] = False
 
     @abc.abstractmethod
     def __call__(self, structure, u):
         """The restoring force [N] at top displacement `u` [m] (any shape)."""
 
-    @property
-    def rigid(self) -> bool:
-        """True for a rigid interface (no pre-uplift phase)."""
-        return False
-
-    @property
-    def two_dof(self) -> bool:
-        """True for the 2-DOF rigid-body model, which `simulate` integrates as such."""
-        return False
-
-    @property
-    def jumps_at_lift_off(self) -> bool:
-        """True if k(u) is discontinuous at |u| = u_crit (the P_crit / P_crit2 gap).
-
-        The simulator then stops and restarts the integration at lift-off and evaluates
-        one smooth branch per segment (`branches`), so that no step straddles the jump and
-        gradients include the crossing.
-        """
-        return False
-
-    def branches(self, structure, u):
-        """(before lift-off, after lift-off) forces [N], each extended smoothly past u_crit."""
-        raise NotImplementedError
-
-    def locked(self, structure, u, sign, lifted):
+    def branch(self, structure, u, sign, lifted):
         """k(u) [N] on one smooth branch, continued smoothly past the branch's ends.
 
-        The branch is the side `sign` (+1 or -1) of $u = 0$ and, for models that jump at
-        lift-off, before (`lifted` False) or after lift-off. Used by the fixed-step
-        integrator (`rockjax.simulate_batch`), whose trial steps may overshoot an event.
-        Default: `self(structure, u)` (for laws that are smooth everywhere).
+        The branch is the side `sign` (+1 or -1) of $u = 0$ and before (`lifted` False) or
+        after lift-off. The integrators stop at every lift-off, landing and impact, so no
+        step straddles a kink or the jump at $u_{crit}$, and trial steps that overshoot an
+        event see a smooth force. Default: `self(structure, u)` (a law smooth everywhere).
         """
         return self(structure, u)
 
@@ -86,22 +70,14 @@ class Simplified(AbstractRestoringForce):
     Past $u_{overturn}$ the force is negative: the structure overturns.
     """
 
-    @property
-    def jumps_at_lift_off(self) -> bool:
-        return True
-
-    def branches(self, structure, u):
-        u = jnp.asarray(u)
-        return structure.K1 * u, jnp.sign(u) * _simplified_post(structure, jnp.abs(u))
-
-    def locked(self, structure, u, sign, lifted):
+    def branch(self, structure, u, sign, lifted):
         post = sign * _simplified_post(structure, sign * u)
         return jnp.where(lifted, post, structure.K1 * u)
 
     def __call__(self, structure, u):
         u = jnp.asarray(u)
-        pre, post = self.branches(structure, u)
-        return jnp.where(jnp.abs(u) <= structure.u_crit, pre, post)
+        sign = jnp.where(u < 0, -1.0, 1.0)
+        return self.branch(structure, u, sign, jnp.abs(u) > structure.u_crit)
 
 
 class Exact(AbstractRestoringForce):
@@ -112,22 +88,9 @@ class Exact(AbstractRestoringForce):
     (`rockjax.theta_from_u`). Use it for large rotations and near overturning.
     """
 
-    @property
-    def jumps_at_lift_off(self) -> bool:
-        return True
-
-    def branches(self, structure, u):
+    def branch(self, structure, u, sign, lifted):
         s = structure
-        u = jnp.asarray(u)
-        a = jnp.abs(u)
         # the after-lift-off mapping theta(u), continued below u_crit
-        tu = jnp.arcsin(jnp.clip(s.delta_0 / s.B, -1.0, 1.0))
-        arg = jnp.sin(s.alpha_e - tu) + (s.u_crit - a) / s.R_e
-        theta = s.alpha_e - jnp.arcsin(jnp.clip(arg, -1.0, 1.0))
-        return s.K1 * u, jnp.sign(u) * _rocking_force(s, theta)
-
-    def locked(self, structure, u, sign, lifted):
-        s = structure
         tu = jnp.arcsin(jnp.clip(s.delta_0 / s.B, -1.0, 1.0))
         arg = jnp.sin(s.alpha_e - tu) + (s.u_crit - sign * u) / s.R_e
         theta = s.alpha_e - jnp.arcsin(jnp.clip(arg, -1.0, 1.0))
@@ -135,8 +98,8 @@ class Exact(AbstractRestoringForce):
 
     def __call__(self, structure, u):
         u = jnp.asarray(u)
-        pre, post = self.branches(structure, u)
-        return jnp.where(jnp.abs(u) <= structure.u_crit, pre, post)
+        sign = jnp.where(u < 0, -1.0, 1.0)
+        return self.branch(structure, u, sign, jnp.abs(u) > structure.u_crit)
 
 
 def _smootherstep(t):
@@ -187,9 +150,7 @@ class Housner(AbstractRestoringForce):
     reduction (inertia $m_e + m_b$), not Housner's rotational equation of motion.
     """
 
-    @property
-    def rigid(self) -> bool:
-        return True
+    rigid: ClassVar[bool] = True
 
     def __call__(self, structure, u):
         s = structure
@@ -197,38 +158,11 @@ class Housner(AbstractRestoringForce):
         theta = theta_from_u(s, jnp.abs(u), rigid=True)
         return jnp.sign(u) * _rocking_force(s, theta)
 
-    def locked(self, structure, u, sign, lifted):
+    def branch(self, structure, u, sign, lifted):
         s = structure
         # u = R_e [sin(alpha_e) - sin(alpha_e - theta)] on the side `sign`, continued past 0
         theta = s.alpha_e - jnp.arcsin(jnp.clip(jnp.sin(s.alpha_e) - sign * u / s.R_e, -1.0, 1.0))
         return sign * _rocking_force(s, theta)
-
-
-def _two_spring():
-    from ._twospring import TwoSpring2DOF
-
-    return TwoSpring2DOF()
-
-
-MODELS = {
-    "simplified": Simplified,
-    "exact": Exact,
-    "smooth": Smooth,
-    "housner": Housner,
-    "two_spring_2dof": _two_spring,
-}
-
-
-def get_model(model) -> AbstractRestoringForce:
-    """A restoring-force model from its name (`"simplified"`, ...) or an instance."""
-    if isinstance(model, AbstractRestoringForce):
-        return model
-    if isinstance(model, str) and model in MODELS:
-        return MODELS[model]()
-    raise ValueError(
-        f"model must be one of {', '.join(repr(m) for m in MODELS)} or an "
-        f"AbstractRestoringForce instance, got {model!r}"
-    )
 
 
 def restoring_force(structure, u, model="simplified"):
@@ -251,4 +185,18 @@ def restoring_force(structure, u, model="simplified"):
     rockjax.restoring_force(s, jnp.linspace(0, 0.3, 5), model="exact")
     ```
     """
-    return get_model(model)(structure, u)
+    if isinstance(model, str) and model == "two_spring_2dof":
+        return pushover(structure, u).P  # the 2-DOF body's static force: its pushover
+    if isinstance(model, str):
+        if model not in LAWS:
+            raise ValueError(
+                f"model must be one of {', '.join(repr(m) for m in LAWS)} or an "
+                f"AbstractRestoringForce instance, got {model!r}"
+            )
+        model = LAWS[model]()
+    if not isinstance(model, AbstractRestoringForce):
+        raise ValueError(f"model must be a restoring-force law, got {type(model).__name__}")
+    return model(structure, u)
+
+
+LAWS = {"simplified": Simplified, "exact": Exact, "smooth": Smooth, "housner": Housner}

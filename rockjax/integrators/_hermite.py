@@ -1,0 +1,74 @@
+"""Cubic Hermite interpolation on a step: values, roots and peaks (the stepper's tools)."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+
+def hermite(a0, m0, a1, m1, s):
+    """Cubic Hermite interpolant on [0, 1] (ends a0, a1; end slopes m0, m1) and d/ds."""
+    s2 = s * s
+    s3 = s2 * s
+    val = (
+        (2 * s3 - 3 * s2 + 1) * a0
+        + (s3 - 2 * s2 + s) * m0
+        + (3 * s2 - 2 * s3) * a1
+        + (s3 - s2) * m1
+    )
+    der = (6 * s2 - 6 * s) * (a0 - a1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
+    return val, der
+
+
+def hermite_root(a0, m0, a1, m1, iters=4):
+    """The s in [0, 1] where the Hermite interpolant is 0 (a0 >= 0 >= a1 bracket it).
+
+    Safeguarded Newton (bisection when a Newton step leaves the bracket), finishing with two
+    plain Newton steps so that the root is converged and carries the implicit-function
+    derivative.
+    """
+    den = a0 - a1
+    safe = jnp.where(den != 0, den, 1.0)
+    s = jnp.clip(jnp.where(den != 0, a0 / safe, 0.5), 0.0, 1.0)
+    lo = jnp.zeros_like(s)
+    hi = jnp.ones_like(s)
+    for _ in range(iters):
+        g, der = hermite(a0, m0, a1, m1, s)
+        above = g * a0 > 0  # still on the starting side: the root lies beyond s
+        lo = jnp.where(above, s, lo)
+        hi = jnp.where(above, hi, s)
+        ok = der != 0
+        sn = s - g / jnp.where(ok, der, 1.0)
+        s = jnp.where(ok & (sn > lo) & (sn < hi), sn, 0.5 * (lo + hi))
+    for _ in range(2):  # plain Newton: converged, and the implicit-function derivative
+        g, der = hermite(a0, m0, a1, m1, s)
+        ok = der != 0
+        s = jnp.clip(s - jnp.where(ok, g / jnp.where(ok, der, 1.0), 0.0), 0.0, 1.0)
+    return s
+
+
+def piece_peak(u0, v0, u1, v1, h):
+    """max |u| over a step, from its cubic Hermite interpolant (exact ends, interior turn)."""
+    m0 = v0 * h
+    m1 = v1 * h
+    turn = v0 * v1 < 0
+    den = m0 - m1
+    s = jnp.clip(jnp.where(turn, m0 / jnp.where(turn, den, 1.0), 0.5), 0.0, 1.0)
+    A = 6 * (u0 - u1) + 3 * m0 + 3 * m1
+    Bq = -6 * (u0 - u1) - 4 * m0 - 2 * m1
+    for _ in range(2):  # Newton on H'(s) = A s^2 + B s + m0
+        d1 = (A * s + Bq) * s + m0
+        d2 = 2 * A * s + Bq
+        s = jnp.clip(s - d1 / jnp.where(d2 != 0, d2, 1.0), 0.0, 1.0)
+    mid, _ = hermite(u0, m0, u1, m1, s)
+    return jnp.maximum(jnp.maximum(jnp.abs(u0), jnp.abs(u1)), jnp.where(turn, jnp.abs(mid), 0.0))
+
+
+def resample(grid, u, v, ts):
+    """Cubic Hermite interpolation of (u, v) from `grid` to `ts` (along the last axis)."""
+    i = np.clip(np.searchsorted(grid, ts, side="right") - 1, 0, len(grid) - 2)
+    dtype = u.dtype
+    h = (grid[i + 1] - grid[i]).astype(dtype)
+    s = ((ts - grid[i]) / (grid[i + 1] - grid[i])).astype(dtype)
+    uu, du = hermite(u[..., i], v[..., i] * h, u[..., i + 1], v[..., i + 1] * h, s)
+    return uu, du / h

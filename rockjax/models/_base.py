@@ -1,0 +1,114 @@
+r"""The interface every rocking model gives the integrators.
+
+A rocking model is a hybrid system: a smooth flow per discrete *mode* (which side of
+$u = 0$, before or after lift-off, which corner is the pivot, ...), *events* that end a
+mode, and *jump maps* applied at events (impacts, lift-off and landing, pivot changes,
+coming to rest). The integrators of `rockjax.integrators` consume only this interface,
+one member at a time (the batched stepper `jax.vmap`s it), so a model written once runs
+on every integrator, and a fix to a jump rule lands once.
+
+A model never imports an integrator.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+import jax.numpy as jnp
+
+
+class Flags(eqx.Module):
+    """What a jump did, for the integrator's bookkeeping (boolean scalars).
+
+    - `impact`: it counts as a rocking impact (Eqs 2–3; recorded in `impact_times`).
+    - `overturned`: the structure overturned; the run stops with status `overturned`.
+    - `rest`: the body has come to rest for good (free vibration out of energy); the
+      run stops with status `completed`.
+    """
+
+    impact: jnp.ndarray
+    overturned: jnp.ndarray
+    rest: jnp.ndarray
+
+
+class Observed(eqx.Module):
+    """What a model reports of its state, in the units of `rockjax.Response`.
+
+    `u` [m] horizontal displacement of the top mass, `v` [m/s] its rate, `theta` [rad]
+    rotation of the body, `uplift` [m] of the lifted corner.
+    """
+
+    u: jnp.ndarray
+    v: jnp.ndarray
+    theta: jnp.ndarray
+    uplift: jnp.ndarray
+
+
+class AbstractRockingModel(eqx.Module):
+    """A rocking model: state and mode, flow, events, jump maps and observables.
+
+    Every method works on ONE member: the state `y` is a 1-D array (for the SDOF models
+    `[u, v]`, for the 2-DOF body the corner heights and their rates), the mode a pytree of
+    scalars. `a_g` [m/s²] is the ground acceleration at that instant.
+
+    Subclasses implement the abstract methods and may override the defaults below.
+    """
+
+    @abc.abstractmethod
+    def init(self, structure, u0, v0, first, forced: bool):
+        """`(y, mode)` for a release from top displacement `u0` [m] and rate `v0` [m/s].
+
+        `first` is the direction (+1 or -1) of the first motion a ground motion would
+        cause from rest; `forced` (static) says whether a ground motion acts.
+        """
+
+    @abc.abstractmethod
+    def vector_field(self, structure, y, mode, a_g):
+        """$dy/dt$ in the given mode under ground acceleration `a_g` [m/s²]."""
+
+    @abc.abstractmethod
+    def conditions(self, structure, y, mode, a_g):
+        """Event conditions, a 1-D array: each is > 0 inside the mode, and an event
+        fires when one falls to 0. Inactive conditions hold a positive constant."""
+
+    @abc.abstractmethod
+    def jump(self, structure, y, mode, which, r, a_g):
+        """`(y, mode, Flags)` after event `which` (an int index into `conditions`).
+
+        The state is projected onto the event's surface exactly (e.g. u = 0 at an
+        impact). `r` is the coefficient of restitution (Eq. 2).
+        """
+
+    @abc.abstractmethod
+    def observe(self, structure, y, mode) -> Observed:
+        """u, v, theta, uplift of a state (see `Observed`)."""
+
+    @abc.abstractmethod
+    def frequency(self, structure):
+        """The highest natural frequency [rad/s] of the flow (fixed-step stability)."""
+
+    @abc.abstractmethod
+    def u_overturn(self, structure):
+        """|u| [m] at which the body overturns."""
+
+    def tracked_uplift(self, structure, y, mode):
+        """The uplift [m] the integrators track for the peak (default: the observed)."""
+        return self.observe(structure, y, mode).uplift
+
+    def theta_uplift_of_u(self, structure, u):
+        """(theta [rad], uplift [m]) as functions of u [m] where the model has them (the
+        SDOF kinematics), for output times between grid points; default None."""
+        return None
+
+    def default_max_pieces(self) -> int:
+        """Event-located pieces the fixed-step stepper allows per step (default 4)."""
+        return 4
+
+    def peak_uplift(self, structure, peak_u, tracked):
+        """The run's peak uplift [m] from its peak |u| [m] and the largest uplift the
+        integrator saw at its step ends (`tracked`). Default: `tracked`."""
+        return tracked
+
+    def check(self, structure, excitation) -> None:
+        """Raise `ValueError` naming the parameter if the model cannot run this scene."""

@@ -1,0 +1,365 @@
+r"""The reference model: the rigid body itself on two compression-only springs (2 DOF).
+
+The paper reduces the rocking body to the SDOF Eq. 1 with inertia $(m_e + m_b)$. This
+module integrates the body it came from, geometrically exactly, so that the reduction can
+be checked (the fidelity study in `benchmarks/fidelity.md`). It is what an engineer would
+otherwise build in OpenSees from compression-only zeroLength springs and a corotational
+rigid body.
+
+**Kinematics** (the same as `rockjax.pushover`): base centre $(x_o, y_o)$, clockwise
+rotation $\theta$; a body point $(b_x, b_y)$ sits at $(x_o + b_x\cos\theta + b_y\sin\theta,\;
+y_o - b_x\sin\theta + b_y\cos\theta)$. The masses $m_e$, $m_b$ (rotary inertias $I_{eg}$,
+$I_{bg}$) sit at $(0, H_e)$ and $(0, H_b)$; the springs at the corners $(\pm B, 0)$.
+
+**Degrees of freedom** $q = (y_o, \theta)$. The horizontal position follows from the no-slip
+rule: while both springs are in contact the base centre is held ($x_o$ constant, rotation
+about the centreline); while one spring is in contact that corner keeps its horizontal
+position $X$, so $x_o = X \mp B\cos\theta$.
+
+**Equations of motion**: Lagrange's equations $M(q)\ddot q = Q + \partial T/\partial q -
+(\partial p/\partial q)\dot q$, with $p = \partial T/\partial \dot q$, formed by automatic
+differentiation of the kinetic energy $T$; $Q$ holds gravity, the springs
+$f_i = \max(0, k_f\delta_i + c_f\dot\delta_i)$ while compressed ($\delta_i > 0$; optional
+compression-only dashpots $c_f$) and the ground acceleration, $-\ddot u_g \sum_j m_j
+\partial x_j/\partial q$.
+
+**Contact changes** are events. A change of the no-slip pivot changes the velocity
+constraint on $x_o$; the friction impulse that enforces the new one is applied as a
+perfectly inelastic projection of the velocities (it removes a fraction of order
+$(\delta_0 / H)^2$ of the kinetic energy). With `contact="impact"` (default), a lifted corner
+landing on its spring is Housner's plastic impact: the velocities are then also scaled by
+$\sqrt r$ (Eq. 2, $r$ from Eq. 3). With `contact="continuous"`, the springs and dashpots
+alone carry the impact.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+
+from .._pushover import lift_off_rotation
+from ._base import AbstractRockingModel, Flags, Observed
+
+CONTACTS = ("impact", "continuous")
+
+
+class TwoSpringMode(eqx.Module):
+    """The discrete mode of the 2-DOF body: the no-slip `pivot` (-1 left corner, 0 the
+    centre, +1 right corner), its horizontal position `X` [m], and the contact flags
+    `cl`, `cr` of the left and right springs (1.0 in contact, 0.0 lifted)."""
+
+    pivot: jnp.ndarray
+    X: jnp.ndarray
+    cl: jnp.ndarray
+    cr: jnp.ndarray
+
+
+class TwoSpring2DOF(AbstractRockingModel):
+    r"""The rigid body on two compression-only springs, integrated as a 2-DOF system.
+
+    Use it as `model="two_spring_2dof"` (or `rockjax.TwoSpring2DOF(damping=..., contact=...)`)
+    in `rockjax.simulate` and `rockjax.simulate_batch`; `u` is then the horizontal
+    displacement of the top mass $m_e$. Its static limit is `rockjax.pushover`.
+
+    The state is `y = (y_left, y_right, y_left', y_right')`, the corner heights [m] above
+    the unloaded spring tops and their rates; events, in the order of `conditions`: the
+    left and right corners reaching their springs (landing or lift-off), and overturning.
+
+    **Arguments:**
+
+    - `damping`: $c_f$, the coefficient of each compression-only dashpot [N s/m]
+      (default 0).
+    - `contact`: `"impact"` (default): a landing corner is a plastic impact, velocities
+      scaled by $\sqrt r$ (Eqs 2–3); `"continuous"`: no velocity jump, the springs and
+      dashpots dissipate.
+    """
+
+    damping: float | jnp.ndarray = 0.0
+    contact: str = eqx.field(static=True, default="impact")
+
+    def __check_init__(self):
+        if self.contact not in CONTACTS:
+            raise ValueError(f"contact must be one of {CONTACTS}, got {self.contact!r}")
+        c = self.damping
+        if isinstance(c, (int, float)) and not (c >= 0 and c < float("inf")):
+            raise ValueError(f"damping (dashpot coefficient c_f) must be >= 0, got {c}")
+
+    def default_max_pieces(self) -> int:
+        return 8
+
+    def init(self, structure, u0, v0, first, forced):
+        return _initial_state(structure, u0, v0)
+
+    def vector_field(self, structure, y, mode, a_g):
+        q, qd = y[:2], y[2:]
+        qdd = accelerations(structure, self, q, qd, mode.pivot, mode.cl > 0, mode.cr > 0, a_g)
+        return jnp.concatenate([qd, qdd])
+
+    def conditions(self, structure, y, mode, a_g):
+        q = y[:2]
+        sl = jnp.where(mode.cl > 0, -1.0, 1.0)
+        sr = jnp.where(mode.cr > 0, -1.0, 1.0)
+        xe = top_x(structure, q, mode.pivot, mode.X)
+        return jnp.stack([sl * q[0], sr * q[1], structure.u_overturn - jnp.abs(xe)])
+
+    def jump(self, structure, y, mode, which, r, a_g):
+        return jax.lax.switch(
+            jnp.minimum(which, 2), [self._contact_left, self._contact_right, self._overturn],
+            structure, y, mode, r,
+        )
+
+    def _contact_left(self, s, y, mode, r):
+        return self._contact(s, y, mode, r, left=True)
+
+    def _contact_right(self, s, y, mode, r):
+        return self._contact(s, y, mode, r, left=False)
+
+    def _contact(self, s, y, mode, r, *, left):
+        """A corner reaches its spring: new contact flags, the pivot and its friction
+        impulse, and (contact="impact") Housner's plastic impact at a landing."""
+        q = y[:2].at[0 if left else 1].set(0.0)  # on the contact surface exactly
+        qd = y[2:]
+        cl = jnp.where(left, 1.0 - mode.cl, mode.cl)
+        cr = jnp.where(left, mode.cr, 1.0 - mode.cr)
+        pivot = mode.pivot
+        new_pivot = _pivot_from(cl > 0, cr > 0, pivot)
+        changed = new_pivot != pivot
+        qd_new = jnp.where(changed, switch_pivot(s, q, qd, pivot, new_pivot), qd)
+        _, th = geometry(s, q)
+        x_o = x_base(s, th, pivot, mode.X)
+        X_new = jnp.where(new_pivot == 0, x_o, x_o + new_pivot * s.B * jnp.cos(th))
+        X_new = jnp.where(changed, X_new, mode.X)
+        landing = (cl if left else cr) > 0
+        real = landing & (self.contact == "impact")
+        # Housner's plastic impact (Eqs 2-3): the rotation rate drops to sqrt(r) of its value
+        # and the landing corner stops (no rebound): y_o' = -/+ B cos(theta) theta'.
+        w = jnp.sqrt(r) * (qd[0] - qd[1])  # = 2 B cos(theta) theta'
+        qd_imp = jnp.stack([0.0 * w, -w]) if left else jnp.stack([w, 0.0 * w])
+        qd_new = jnp.where(real, qd_imp, qd_new)
+        f = jnp.zeros((), bool)
+        new = TwoSpringMode(pivot=new_pivot, X=X_new, cl=cl, cr=cr)
+        return jnp.concatenate([q, qd_new]), new, Flags(real, f, f)
+
+    def _overturn(self, s, y, mode, r):
+        f = jnp.zeros((), bool)
+        return y, mode, Flags(f, ~f, f)
+
+    def observe(self, structure, y, mode):
+        q, qd = y[:2], y[2:]
+        return Observed(
+            u=top_x(structure, q, mode.pivot, mode.X),
+            v=top_xd(structure, q, qd, mode.pivot),
+            theta=geometry(structure, q)[1],
+            uplift=jnp.maximum(jnp.max(q), 0.0),
+        )
+
+    def frequency(self, structure):
+        s = structure
+        vertical = jnp.sqrt(2.0 * s.k_f / (s.m_e + s.m_b))
+        return jnp.maximum(vertical, linearised_frequency(s))
+
+    def u_overturn(self, structure):
+        return structure.u_overturn
+
+
+# ---------------------------------------------------------------------------- kinematics
+#
+# The generalised coordinates are the corner heights q = (y_left, y_right) [m] above the
+# unloaded spring tops (y_o = mean, sin(theta) = (y_left - y_right) / 2B): a spring's
+# contact condition is then a state component itself, computed without cancellation, which
+# keeps contact events clean when a corner lands with zero velocity.
+
+
+def geometry(s, q):
+    """(y_o [m], theta [rad]) of the base centre from the corner heights q."""
+    return 0.5 * (q[0] + q[1]), jnp.arcsin((q[0] - q[1]) / (2.0 * s.B))
+
+
+def coords(s, y_o, theta):
+    """Corner heights q from (y_o, theta)."""
+    return jnp.stack([y_o + s.B * jnp.sin(theta), y_o - s.B * jnp.sin(theta)])
+
+
+def x_base(s, theta, pivot, X):
+    """Horizontal position of the base centre for the no-slip pivot (-1, 0 or +1)."""
+    return jnp.where(pivot == 0, X, X - pivot * s.B * jnp.cos(theta))
+
+
+def _rates(s, q, qd):
+    (y_o, theta), (yd, thd) = jax.jvp(lambda qq: geometry(s, qq), (q,), (qd,))
+    return y_o, theta, yd, thd
+
+
+def kinetic(s, q, qd, pivot):
+    """Kinetic energy T [J] of the two masses and their rotary inertias."""
+    _, theta, y_d, th_d = _rates(s, q, qd)
+    dx_o = pivot * s.B * jnp.sin(theta) * th_d
+    T = 0.5 * (s.I_eg + s.I_bg) * th_d**2
+    for m, H in ((s.m_e, s.H_e), (s.m_b, s.H_b)):
+        xd = dx_o + H * jnp.cos(theta) * th_d
+        yd = y_d - H * jnp.sin(theta) * th_d
+        T = T + 0.5 * m * (xd**2 + yd**2)
+    return T
+
+
+def gravity_potential(s, q):
+    y_o, theta = geometry(s, q)
+    return s.g * (s.m_e * (y_o + s.H_e * jnp.cos(theta)) + s.m_b * (y_o + s.H_b * jnp.cos(theta)))
+
+
+def potential(s, q):
+    """Gravity + spring energy [J] (the springs' compression-only strain energy)."""
+    return gravity_potential(s, q) + 0.5 * s.k_f * jnp.sum(jnp.maximum(-q, 0.0) ** 2)
+
+
+def top_x(s, q, pivot, X):
+    """Horizontal displacement u [m] of the top mass m_e."""
+    _, theta = geometry(s, q)
+    return x_base(s, theta, pivot, X) + s.H_e * jnp.sin(theta)
+
+
+def top_xd(s, q, qd, pivot):
+    _, theta, _, th_d = _rates(s, q, qd)
+    return (pivot * s.B * jnp.sin(theta) + s.H_e * jnp.cos(theta)) * th_d
+
+
+def _horizontal_moment(s, q, pivot, X):
+    """sum_j m_j x_j: its gradient is the ground motion's generalised force per unit accel."""
+    _, theta = geometry(s, q)
+    x_o = x_base(s, theta, pivot, X)
+    return s.m_e * (x_o + s.H_e * jnp.sin(theta)) + s.m_b * (x_o + s.H_b * jnp.sin(theta))
+
+
+def accelerations(s, model, q, qd, pivot, contact_l, contact_r, ag):
+    """q'' from Lagrange's equations, for the current contact state and ground accel ag."""
+    M = jax.hessian(kinetic, argnums=2)(s, q, jnp.zeros_like(q), pivot)
+    dTdq = jax.grad(kinetic, argnums=1)(s, q, qd, pivot)
+
+    def momentum(qq):
+        return jax.grad(kinetic, argnums=2)(s, qq, qd, pivot)
+
+    _, dp = jax.jvp(momentum, (q,), (qd,))
+    Q = -jax.grad(gravity_potential, argnums=1)(s, q)
+    # Springs (and dashpots) push up at the corners: generalised forces on q directly. In
+    # contact the force is continued smoothly past its end (the contact event ends the
+    # segment there); a dashpot cannot pull, so with damping the force is clipped.
+    f = -s.k_f * q - model.damping * qd
+    f = jnp.where(model.damping > 0, jnp.maximum(f, 0.0), f)
+    f = jnp.where(jnp.stack([contact_l, contact_r]), f, 0.0)
+    Q = Q + f - ag * jax.grad(_horizontal_moment, argnums=1)(s, q, pivot, 0.0)
+    return jnp.linalg.solve(M, Q + dTdq - dp)
+
+
+def energy(s, q, qd, pivot):
+    """Total mechanical energy T + V [J] (gravity from the base plane, springs)."""
+    return kinetic(s, q, qd, pivot) + potential(s, q)
+
+
+def switch_pivot(s, q, qd, old, new):
+    """Velocities after the no-slip pivot changes from `old` to `new` (inelastic projection).
+
+    Physical velocities V = (x_o', y_o', theta'); before, x_o' = old B sin(theta) theta'.
+    The friction impulse L acts horizontally at the new restraint point; it makes
+    x_o' = new B sin(theta) theta' hold afterwards: M3 (V+ - V-) = G^T L, G V+ = 0.
+    """
+    _, theta, y_d, th_d = _rates(s, q, qd)
+    sn, c = jnp.sin(theta), jnp.cos(theta)
+    V = jnp.stack([old * s.B * sn * th_d, y_d, th_d])
+    m = s.m_e + s.m_b
+    mh = s.m_e * s.H_e + s.m_b * s.H_b
+    Ih = s.I_eg + s.I_bg + s.m_e * s.H_e**2 + s.m_b * s.H_b**2
+    M3 = jnp.stack([jnp.stack([m, 0.0 * m, mh * c]), jnp.stack([0.0 * m, m, -mh * sn]),
+                    jnp.stack([mh * c, -mh * sn, Ih])])
+    G = jnp.stack([1.0, 0.0, -new * s.B * sn])
+    MiG = jnp.linalg.solve(M3, G)
+    Vp = V + MiG * (-(G @ V) / (G @ MiG))
+    return jnp.stack([Vp[1] + s.B * c * Vp[2], Vp[1] - s.B * c * Vp[2]])
+
+
+# ---------------------------------------------------------------------------- statics
+
+
+def static_state(s, a):
+    """Static equilibrium at top displacement a >= 0 under a lateral load P at m_e.
+
+    Virtual work with the 2-DOF potential: dV/dy_o = 0, dV/dtheta = P dx_e/dtheta, and
+    x_e(theta) = a (the pushover kinematics: centre held before lift-off, corner after).
+    Returns (q, P, pivot, X).
+    """
+    theta_u = lift_off_rotation(s)
+    X_r = s.B * jnp.cos(theta_u)  # the right corner's x once it is the pivot
+
+    def pieces(theta):
+        lifted = theta > theta_u
+        return jnp.where(lifted, 1.0, 0.0), jnp.where(lifted, X_r, 0.0)
+
+    def V(y_o, theta):
+        return potential(s, coords(s, y_o, theta))
+
+    def fn(z, _):
+        y_o, theta, P = z[0] * s.B, z[1], z[2] * s.W
+        pivot, X = pieces(theta)
+        dVy, dVt = jax.grad(V, argnums=(0, 1))(y_o, theta)
+        dxe = pivot * s.B * jnp.sin(theta) + s.H_e * jnp.cos(theta)
+        xe = x_base(s, theta, pivot, X) + s.H_e * jnp.sin(theta)
+        return jnp.stack([dVy / s.W, (dVt - P * dxe) / (s.W * s.B), (xe - a) / s.H_e])
+
+    z0 = jnp.stack([-s.delta_0 / s.B, jnp.arcsin(jnp.clip(a / s.R_e, 0.0, 1.0)),
+                    jnp.zeros_like(a)])
+    sol = optx.root_find(fn, optx.Newton(rtol=1e-13, atol=1e-13), z0, max_steps=64,
+                         throw=False)
+    z = sol.value
+    pivot, X = pieces(z[1])
+    return coords(s, z[0] * s.B, z[1]), z[2] * s.W, pivot, X
+
+
+def static_pushover(structure, u):
+    """P(u) [N] from the 2-DOF static equilibrium (virtual work), for checking."""
+    u = jnp.asarray(u, jnp.result_type(structure.B))
+
+    def one(ui):
+        _, P, _, _ = static_state(structure, jnp.abs(ui))
+        return jnp.sign(ui) * P
+
+    return jax.vmap(one)(jnp.ravel(u)).reshape(jnp.shape(u))
+
+
+def linearised_frequency(structure):
+    r"""Small-amplitude rocking frequency [rad/s] of the 2-DOF body on both springs.
+
+    $\omega^2 = (2k_fB^2 - g(m_eH_e + m_bH_b)) / (I_{eg} + I_{bg} + m_eH_e^2 + m_bH_b^2)$,
+    rotation about the base centre; the SDOF counterpart is $\sqrt{K_1/(m_e+m_b)}$ (Eq. 15).
+    """
+    s = structure
+    k = 2 * s.k_f * s.B**2 - s.g * (s.m_e * s.H_e + s.m_b * s.H_b)
+    return jnp.sqrt(k / (s.I_eg + s.I_bg + s.m_e * s.H_e**2 + s.m_b * s.H_b**2))
+
+
+# ---------------------------------------------------------------------------- dynamics
+
+
+def _initial_state(s, u0, v0):
+    """(y, mode): the static configuration at top displacement u0 (a release from the
+    pushover), with the top mass moving at v0 as a rotation about the pivot."""
+    q, _, pivot, X = static_state(s, jnp.abs(u0))
+    neg = u0 < 0
+    q = jnp.where(neg, q[::-1], q)  # the mirror image swaps the corners
+    sg = jnp.where(neg, -1.0, 1.0)
+    pivot, X = sg * pivot, sg * X
+    _, th0 = geometry(s, q)
+    lever = pivot * s.B * jnp.sin(th0) + s.H_e * jnp.cos(th0)
+    bc = s.B * jnp.cos(th0) * v0 / lever
+    # the pivot corner stays put (both corners move symmetrically about a centre pivot)
+    qd = jnp.where(pivot > 0, jnp.stack([2 * bc, 0.0 * bc]),
+                   jnp.where(pivot < 0, jnp.stack([0.0 * bc, -2 * bc]), jnp.stack([bc, -bc])))
+    mode = TwoSpringMode(pivot=pivot, X=X, cl=(q[0] <= 0).astype(q.dtype),
+                         cr=(q[1] <= 0).astype(q.dtype))
+    return jnp.concatenate([q, qd]), mode
+
+
+def _pivot_from(cl, cr, old):
+    return jnp.where(cl & cr, 0.0, jnp.where(cr, 1.0, jnp.where(cl, -1.0, old)))
+
+

@@ -212,18 +212,19 @@ def _progress(total, enabled, desc):
     return tqdm(total=total, desc=desc, unit="run", file=sys.stderr, leave=False)
 
 
-class _Plan(eqx.Module):
-    """What a batch runs: the model, its grid and the integrator's settings (static)."""
+@dataclasses.dataclass(frozen=True)
+class _Plan:
+    """What a batch runs: the model, its grid and the integrator's settings."""
 
     model: object
-    method: str = eqx.field(static=True)
-    free: bool = eqx.field(static=True)
-    dt_rec: float = eqx.field(static=True)
-    t1: float = eqx.field(static=True)
-    grid: np.ndarray = eqx.field(static=True)
+    method: str
+    free: bool
+    dt_rec: float
+    t1: float
+    grid: np.ndarray
     cfg: object
-    n_devices: int = eqx.field(static=True)
-    chunk: int = eqx.field(static=True)
+    n_devices: int
+    chunk: int
 
 
 def _split(members, structure, N, dtype):

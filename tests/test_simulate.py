@@ -247,12 +247,12 @@ def test_no_recompile_on_new_values(column):
         run(column.replace(k_f=k), jnp.asarray(u0), jnp.asarray(r))
     assert len(calls) == 1
     # and the public entry point itself does not retrace for new values
-    before = rockjax._simulate._simulate._cached._cache_size()
+    before = rockjax.integrators.solve._cached._cache_size()
     for k in (5.6e5, 5.7e5):
         simulate(column.replace(k_f=k), FreeVibration(0.1), 1.0, ts=ts)
-    mid = rockjax._simulate._simulate._cached._cache_size()
+    mid = rockjax.integrators.solve._cached._cache_size()
     simulate(column.replace(k_f=5.8e5), FreeVibration(0.09), 1.0, ts=ts, r=0.6)
-    assert rockjax._simulate._simulate._cached._cache_size() == mid >= before
+    assert rockjax.integrators.solve._cached._cache_size() == mid >= before
 
 
 def test_adaptive_gradient_on_a_record_is_sane(column, ground_motions_dir):
@@ -276,9 +276,9 @@ def test_adaptive_gradient_on_a_record_is_sane(column, ground_motions_dir):
 
 def test_weak_typed_values_do_not_recompile(column):
     gm = GroundMotion(dt=0.01, accel=np.sin(np.arange(200) * 0.1), scale=1.0)
-    before = rockjax._simulate._simulate._cached._cache_size()
+    before = rockjax.integrators.solve._cached._cache_size()
     simulate(column, gm, 1.0)
-    mid = rockjax._simulate._simulate._cached._cache_size()
+    mid = rockjax.integrators.solve._cached._cache_size()
     simulate(column, eqx.tree_at(lambda g: g.scale, gm, jnp.asarray(2.0)), 1.0)
     simulate(column, GroundMotion(dt=0.01, accel=gm.accel, scale=jnp.asarray(0.5)), 1.0)
-    assert rockjax._simulate._simulate._cached._cache_size() == mid <= before + 1
+    assert rockjax.integrators.solve._cached._cache_size() == mid <= before + 1

@@ -12,7 +12,8 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 
 import rockjax
-from rockjax import _twospring as T2, FreeVibration, simulate
+from rockjax import FreeVibration, simulate
+from rockjax.models import _twospring as T2
 
 
 def _zero_crossings(ts, u):

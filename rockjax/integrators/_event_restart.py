@@ -167,11 +167,13 @@ def _save_window(scene, c, sol, i0, win, seg_t1, tend, y_end):
     # diffrax 0.7.2 saves inf at an output time equal to t1 when t1 is also a jump time
     # (diffrax issue #663): outputs at the segment's end come from its final state
     at_end = jnp.clip(win, c.t, seg_t1) == tend
-    ys = jnp.where(at_end[:, None], y_end, sol.ys[0])
-    obs = jax.vmap(lambda y: scene.model.observe(scene.s, y, c.mode))(ys)
-    new = jnp.stack([obs.u, obs.v, obs.theta, obs.uplift])
     idx = i0 + jnp.arange(WINDOW)
     valid = (win >= c.t) & (win <= tend) & (idx < n)
+    # times past the event hold inf: replace them before observing, so that no NaN
+    # reaches a reverse-mode gradient through the masked entries
+    ys = jnp.where((at_end | ~valid)[:, None], y_end, sol.ys[0])
+    obs = jax.vmap(lambda y: scene.model.observe(scene.s, y, c.mode))(ys)
+    new = jnp.stack([obs.u, obs.v, obs.theta, obs.uplift])
     keep = c.out[:, jnp.minimum(idx, n - 1)]
     out = c.out.at[:, idx].set(jnp.where(valid, new, keep), mode="drop")
     return out, jnp.max(jnp.where(valid, obs.uplift, 0.0))

@@ -95,7 +95,9 @@ def rk_step(model, s, y, mode, tau, h, a0, da, cfg):
 
 def _conditions_and_rates(model, s, y, mode, a, da, flow):
     """The model's event conditions and their time derivatives along the flow."""
-    return jax.jvp(lambda yy, aa: model.conditions(s, yy, mode, aa), (y, a), (flow, da))
+    a = jnp.asarray(a, y.dtype)
+    return jax.jvp(lambda yy, aa: model.conditions(s, yy, mode, aa), (y, a),
+                   (flow.astype(y.dtype), jnp.asarray(da, y.dtype)))
 
 
 class Trial(eqx.Module):

@@ -89,7 +89,9 @@ class SDOF(AbstractRockingModel):
         s = structure
         sign = nonzero_sign(u0, nonzero_sign(v0, first))
         a = jnp.abs(u0)
-        resting = (self.rigid and forced) & (u0 == 0) & (v0 == 0) & (a < s.u_overturn)
+        # a rigid block released at rest on the ground stays there (until a ground motion
+        # lifts it): Eq. 1 alone, whose force jumps at u = 0, would chatter from rest
+        resting = self.rigid & (u0 == 0) & (v0 == 0) & (a < s.u_overturn)
         E0 = 0.5 * s.mass * v0**2 + a * jnp.abs(self.law(s, u0))
         mode = SDOFMode(
             sign=sign,
@@ -129,12 +131,15 @@ class SDOF(AbstractRockingModel):
     def _impact(self, s, y, mode, r, a_g):
         real = mode.lifted if self.impact == "after_uplift" else jnp.ones((), bool)
         v = jnp.where(real, jnp.sqrt(r) * y[1], y[1])
-        if self.rigid:  # the impacts of a settling block converge: it comes to rest
-            settle = mode.forced & real & (0.5 * v**2 <= 1e-8 * self._a_up(s) * s.B)
+        if self.rigid:
+            # the impacts of a settling block converge (infinitely many in a finite time):
+            # below this speed it has come to rest, on the ground until a ground motion
+            # lifts it again
+            settle = real & (0.5 * v**2 <= 1e-8 * self._a_up(s) * s.B)
         else:
             settle = jnp.zeros((), bool)
         # a free vibration that has run out of energy rests at u = 0 for good
-        rest = ~mode.forced & (0.5 * s.mass * v**2 <= 1e-14 * mode.E0)
+        rest = ~mode.forced & ((0.5 * s.mass * v**2 <= 1e-14 * mode.E0) | settle)
         v = jnp.where(settle | rest, 0.0, v)
         new = SDOFMode(
             sign=nonzero_sign(v, -mode.sign),

@@ -211,6 +211,76 @@ def fit_decay(
     fit.values["k_f"], fit.stderr["k_f"]
     ```
     """
+    problem = _setup(trace, structure, params, model=model, impact=impact, initial=initial,
+                     starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
+                     uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress)
+    transform = _Transform(problem.params, problem.values0, problem.k_min, problem.scale)
+    misfit = _Misfit(problem, transform)
+    opt = levenberg_marquardt() if optimizer is None else optax.with_extra_args_support(optimizer)
+    run_chunk = _make_run_chunk(misfit, opt)
+    run = _run_stages(problem, misfit, run_chunk, opt, transform.starting_points(problem.starts),
+                      lm=optimizer is None)
+    best = _best_start(problem, run_chunk, opt, run)
+    unc = _uncertainty(problem, transform, best, run.keep)
+    ident, messages = _identifiability(problem, best, unc)
+    for m in messages:
+        warnings.warn(m, IdentifiabilityWarning, stacklevel=2)
+    response = misfit.respond(jnp.asarray(best.z), "reverse")
+    msg = _outlier_message(problem, np.asarray(response.u), run.keep, unc.sigma)
+    if msg is not None:
+        messages.append(msg)
+        warnings.warn(msg, OutlierWarning, stacklevel=2)
+    return _result(problem, run, best, unc, ident, messages, response)
+
+
+_CHUNK = 4
+"""Optimiser steps per compiled call (one `jax.lax.scan`) between convergence checks."""
+
+# (log k_f shift, logit r shift) of each start: r first, since the decay envelope and the
+# impact times (the phase) depend on it most
+_START_OFFSETS = ((0.0, 0.0), (0.0, 1.0), (0.0, -1.0), (math.log(2), 0.0),
+                  (-math.log(2), 0.0), (math.log(2), 1.0), (-math.log(2), 1.0),
+                  (math.log(4), 0.0))
+
+
+# ------------------------------------------------------------------ arguments
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Problem:
+    """The checked arguments of `fit_decay`, with the trace as float arrays."""
+
+    structure: object
+    params: tuple
+    model: object
+    impact: str
+    horizons: tuple  # fractions of the trace, floats
+    starts: int
+    max_iter: int
+    tol: float
+    uplift_weight: float
+    rtol: float
+    atol: float
+    progress: object
+    t: np.ndarray
+    u_meas: np.ndarray
+    up_meas: np.ndarray | None
+    scale: float  # trace amplitude max |u| [m]: the unit of the residuals
+    values0: dict  # starting values of all of PARAM_NAMES
+    k_min: float  # stability limit of k_f (Eq. 15) [N/m]
+
+    @property
+    def fits_uplift(self) -> bool:
+        """Whether the uplift channel is in the residuals."""
+        return self.up_meas is not None and self.uplift_weight > 0
+
+    def within(self, frac: float) -> np.ndarray:
+        """The samples of the first `frac` of the trace (boolean)."""
+        t = self.t
+        return t <= t[0] + frac * (t[-1] - t[0])
+
+
+def _check_structure(structure):
     structure = rockjax.mcmanus_column() if structure is None else structure
     if not isinstance(structure, rockjax.RockingStructure):
         raise ValueError(
@@ -219,6 +289,10 @@ def fit_decay(
     if any(np.ndim(getattr(structure, k)) != 0 for k in ("m_e", "m_b", "H_e", "H_b", "B",
                                                          "I_eg", "I_bg", "k_f", "g")):
         raise ValueError("structure must be a single structure (scalar fields), not a batch")
+    return structure
+
+
+def _check_params(params) -> tuple:
     if isinstance(params, str):
         raise ValueError(
             f"params must be a sequence of names from {PARAM_NAMES}, e.g. ('k_f', 'r'), "
@@ -228,15 +302,18 @@ def fit_decay(
     bad = [p for p in params if p not in PARAM_NAMES]
     if bad or not params or len(set(params)) != len(params):
         raise ValueError(f"params must be distinct names from {PARAM_NAMES}, got {params}")
+    return params
+
+
+def _check_options(starts, max_iter, model, impact, horizons, tol, uplift_weight) -> tuple:
+    """Check the optimiser and simulation options; returns `horizons` as a tuple of floats."""
     if not (isinstance(starts, int) and starts >= 1):
         raise ValueError(f"starts must be a positive integer, got {starts!r}")
     if not (isinstance(max_iter, int) and max_iter >= 1):
         raise ValueError(f"max_iter must be a positive integer, got {max_iter!r}")
     rockjax.get_model(model)  # ValueError naming the model if unknown
-    from rockjax._simulate import IMPACT_RULES
-
-    if impact not in IMPACT_RULES:
-        raise ValueError(f"impact must be one of {IMPACT_RULES}, got {impact!r}")
+    if impact not in rockjax.IMPACT_RULES:
+        raise ValueError(f"impact must be one of {rockjax.IMPACT_RULES}, got {impact!r}")
     try:
         hs = tuple(float(h) for h in horizons)
     except (TypeError, ValueError):
@@ -245,19 +322,27 @@ def fit_decay(
         raise ValueError(
             f"horizons must be a non-empty sequence of fractions in (0, 1], got {horizons!r}"
         )
-    horizons = hs
     for name, val in (("tol", tol), ("uplift_weight", uplift_weight)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
             raise ValueError(f"{name} must be a finite number >= 0, got {val!r}")
-    if not isinstance(trace, DecayTrace):
-        if not (hasattr(trace, "t") and hasattr(trace, "u")):
-            raise ValueError(
-                "trace must be an identification.DecayTrace (t [s], u [m], optional uplift "
-                f"[m]), got {type(trace).__name__}"
-            )
-        # validated like a DecayTrace: finite, strictly increasing, no gaps, >= 10 samples
-        trace = DecayTrace(t=trace.t, u=trace.u, uplift=getattr(trace, "uplift", None),
-                           source=str(getattr(trace, "source", "")))
+    return hs
+
+
+def _as_trace(trace) -> DecayTrace:
+    if isinstance(trace, DecayTrace):
+        return trace
+    if not (hasattr(trace, "t") and hasattr(trace, "u")):
+        raise ValueError(
+            "trace must be an identification.DecayTrace (t [s], u [m], optional uplift "
+            f"[m]), got {type(trace).__name__}"
+        )
+    # validated like a DecayTrace: finite, strictly increasing, no gaps, >= 10 samples
+    return DecayTrace(t=trace.t, u=trace.u, uplift=getattr(trace, "uplift", None),
+                      source=str(getattr(trace, "source", "")))
+
+
+def _trace_arrays(trace: DecayTrace, params: tuple):
+    """(t, u, uplift or None, amplitude max |u|) of the trace, checked to be fittable."""
     t = np.asarray(trace.t, float)
     u_meas = np.asarray(trace.u, float)
     up_meas = None if getattr(trace, "uplift", None) is None else np.asarray(trace.uplift, float)
@@ -266,7 +351,11 @@ def fit_decay(
     scale = float(np.max(np.abs(u_meas)))
     if not scale > 0:
         raise ValueError("the trace's displacement is zero everywhere: nothing to fit")
+    return t, u_meas, up_meas, scale
 
+
+def _starting_values(structure, u_meas, initial):
+    """(starting values of all of PARAM_NAMES, the stability limit k_min of k_f)."""
     values0 = {
         "k_f": float(structure.k_f),
         "r": float(structure.restitution),
@@ -297,196 +386,359 @@ def fit_decay(
         )
     if not 0.0 < values0["r"] < 1.0:
         raise ValueError(f"initial r must lie strictly inside (0, 1), got {values0['r']}")
+    return values0, k_min
 
-    def encode(v):
+
+def _setup(trace, structure, params, *, model, impact, initial, starts, max_iter, horizons,
+           tol, uplift_weight, rtol, atol, progress) -> _Problem:
+    """Check and normalise the arguments of `fit_decay` (ValueError on the first bad one)."""
+    structure = _check_structure(structure)
+    params = _check_params(params)
+    horizons = _check_options(starts, max_iter, model, impact, horizons, tol, uplift_weight)
+    t, u_meas, up_meas, scale = _trace_arrays(_as_trace(trace), params)
+    values0, k_min = _starting_values(structure, u_meas, initial)
+    return _Problem(
+        structure=structure, params=params, model=model, impact=impact, horizons=horizons,
+        starts=starts, max_iter=max_iter, tol=tol, uplift_weight=uplift_weight, rtol=rtol,
+        atol=atol, progress=progress, t=t, u_meas=u_meas, up_meas=up_meas, scale=scale,
+        values0=values0, k_min=k_min,
+    )
+
+
+# --------------------------------------------------------- parameters <-> z
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Transform:
+    """Natural parameters <-> the optimiser's unconstrained coordinates z (module docstring).
+
+    z holds the fitted parameters only (order `params`); the others keep `values0`.
+    """
+
+    params: tuple
+    values0: dict
+    k_min: float
+    scale: float
+
+    def encode(self, v: dict) -> dict:
+        """Natural values of all four parameters -> their z coordinates."""
         return {
-            "k_f": math.log(v["k_f"] - k_min),
+            "k_f": math.log(v["k_f"] - self.k_min),
             "r": math.log(v["r"] / (1.0 - v["r"])),
-            "u0": v["u0"] / scale,
+            "u0": v["u0"] / self.scale,
             "t0": v["t0"] / _T_SCALE,
         }
 
-    def decode(z):
+    def decode(self, z) -> dict:
         """Unconstrained z (fitted params only) -> dict of all four natural values."""
-        out = {k: jnp.asarray(values0[k]) for k in PARAM_NAMES}
-        for i, name in enumerate(params):
+        out = {k: jnp.asarray(self.values0[k]) for k in PARAM_NAMES}
+        for i, name in enumerate(self.params):
             zi = z[i]
             if name == "k_f":
-                out["k_f"] = k_min + jnp.exp(zi)
+                out["k_f"] = self.k_min + jnp.exp(zi)
             elif name == "r":
                 out["r"] = jax.nn.sigmoid(zi)
             elif name == "u0":
-                out["u0"] = zi * scale
+                out["u0"] = zi * self.scale
             else:
                 out["t0"] = zi * _T_SCALE
         return out
 
-    t_j = jnp.asarray(t)
-    u_j = jnp.asarray(u_meas)
-    up_j = None if up_meas is None else jnp.asarray(up_meas)
-    t_end = float(t[-1])
+    def derivatives(self, z) -> list:
+        """d(natural value)/dz of each fitted parameter at the point `z` (floats)."""
+        out = []
+        for p, zi in zip(self.params, z):
+            if p == "k_f":
+                out.append(math.exp(zi))
+            elif p == "r":
+                s_ = 1.0 / (1.0 + math.exp(-zi))
+                out.append(s_ * (1 - s_))
+            elif p == "u0":
+                out.append(self.scale)
+            else:
+                out.append(_T_SCALE)
+        return out
 
-    def respond(z, adjoint):
-        v = decode(z)
-        s = structure.replace(k_f=v["k_f"])
-        ts = jnp.maximum(t_j - v["t0"], 0.0)
-        t1 = jnp.maximum(t_end - v["t0"], 1e-6)
+    def starting_points(self, n: int) -> np.ndarray:
+        """`n` starting points (n, P): `values0`, then k_f and r shifted (_START_OFFSETS)."""
+        z0 = self.encode(self.values0)
+        base = np.array([z0[p] for p in self.params])
+        starts_z = []
+        for i in range(n):
+            dk, dr = _START_OFFSETS[i % len(_START_OFFSETS)]
+            dk *= 1 + i // len(_START_OFFSETS)
+            zi = base.copy()
+            for j, p in enumerate(self.params):
+                zi[j] += dk if p == "k_f" else dr if p == "r" else 0.0
+            starts_z.append(zi)
+        return np.stack(starts_z)
+
+
+# -------------------------------------------------------- residuals, Jacobian
+
+
+class _Misfit:
+    """The simulated trace at a point z and its residuals against the measured one."""
+
+    def __init__(self, problem: _Problem, transform: _Transform):
+        self.problem = problem
+        self.transform = transform
+        self.t_j = jnp.asarray(problem.t)
+        self.u_j = jnp.asarray(problem.u_meas)
+        self.up_j = None if problem.up_meas is None else jnp.asarray(problem.up_meas)
+        self.t_end = float(problem.t[-1])
+
+    def respond(self, z, adjoint):
+        """`rockjax.simulate` of the release at z, on the trace times (model time t - t0)."""
+        pb = self.problem
+        v = self.transform.decode(z)
+        s = pb.structure.replace(k_f=v["k_f"])
+        ts = jnp.maximum(self.t_j - v["t0"], 0.0)
+        t1 = jnp.maximum(self.t_end - v["t0"], 1e-6)
         return rockjax.simulate(
-            s, rockjax.FreeVibration(v["u0"]), t1, ts=ts, r=v["r"], model=model,
-            impact=impact, rtol=rtol, atol=atol, adjoint=adjoint,
+            s, rockjax.FreeVibration(v["u0"]), t1, ts=ts, r=v["r"], model=pb.model,
+            impact=pb.impact, rtol=pb.rtol, atol=pb.atol, adjoint=adjoint,
         )
 
-    def residuals(z, mask, adjoint="forward"):
-        res = respond(z, adjoint)
-        parts = [mask * (res.u - u_j) / scale]
-        if up_j is not None and uplift_weight > 0:
-            parts.append(mask * uplift_weight * (res.uplift - up_j) / scale)
+    def residuals(self, z, mask, adjoint="forward"):
+        """Masked residuals (displacement, then weighted uplift) in units of `scale`."""
+        pb = self.problem
+        res = self.respond(z, adjoint)
+        parts = [mask * (res.u - self.u_j) / pb.scale]
+        if self.up_j is not None and pb.uplift_weight > 0:
+            parts.append(mask * pb.uplift_weight * (res.uplift - self.up_j) / pb.scale)
         r = jnp.concatenate(parts)
         # a failed or overturned run is a bad point, not a crash: large finite residuals
         bad = (res.status != rockjax.STATUS["completed"]) | ~jnp.all(jnp.isfinite(r))
         return jnp.where(bad, 1e3, r)
 
-    def res_jac(z, mask):
-        return residuals(z, mask), jax.jacfwd(residuals)(z, mask)
+    def res_jac(self, z, mask):
+        """The residuals and their Jacobian d r / d z (forward mode)."""
+        return self.residuals(z, mask), jax.jacfwd(self.residuals)(z, mask)
 
-    opt = levenberg_marquardt() if optimizer is None else optax.with_extra_args_support(optimizer)
+    def channels(self, response) -> list:
+        """Unmasked residual arrays of a response (numpy), one per fitted channel."""
+        pb = self.problem
+        out = [(np.asarray(response.u) - pb.u_meas) / pb.scale]
+        if pb.fits_uplift:
+            out.append(pb.uplift_weight * (np.asarray(response.uplift) - pb.up_meas) / pb.scale)
+        return out
 
-    chunk = 4
+
+def _make_run_chunk(misfit: _Misfit, opt):
+    """The compiled optimiser run: `_CHUNK` steps of every start (vmap over the first axis).
+
+    `run_chunk(z, opt_state, mask, free)` returns the new points and states, the loss at
+    each step (starts, _CHUNK), and the residuals and Jacobian at the first step.
+    """
 
     @eqx.filter_jit
     def run_chunk(z, opt_state, mask, free):
         def one(z, opt_state):
             def step(carry, _):
                 z, st = carry
-                r, J = res_jac(z, mask)
+                r, J = misfit.res_jac(z, mask)
                 J = J * free  # frozen parameters get a zero column: a zero step
                 value = 0.5 * jnp.sum(r**2)
                 g = J.T @ r
                 upd, st = opt.update(g, st, z, value=value, jtj=J.T @ J)
                 return (z + upd, st), (value, r, J)
 
-            (z_new, st), (vals, rs, Js) = jax.lax.scan(step, (z, opt_state), None, length=chunk)
+            (z_new, st), (vals, rs, Js) = jax.lax.scan(step, (z, opt_state), None,
+                                                        length=_CHUNK)
             return z_new, st, vals, rs[0], Js[0]
 
         return jax.vmap(one)(z, opt_state)
 
-    # starting points
-    z0 = encode(values0)
-    base = np.array([z0[p] for p in params])
-    starts_z = []
-    # (log k_f shift, logit r shift) of each start: r first, since the decay envelope and
-    # the impact times (the phase) depend on it most
-    offsets = [(0.0, 0.0), (0.0, 1.0), (0.0, -1.0), (math.log(2), 0.0), (-math.log(2), 0.0),
-               (math.log(2), 1.0), (-math.log(2), 1.0), (math.log(4), 0.0)]
-    for i in range(starts):
-        dk, dr = offsets[i % len(offsets)]
-        dk *= 1 + i // len(offsets)
-        zi = base.copy()
-        for j, p in enumerate(params):
-            zi[j] += dk if p == "k_f" else dr if p == "r" else 0.0
-        starts_z.append(zi)
-    z = jnp.asarray(np.stack(starts_z))
-    opt_state = jax.vmap(opt.init)(z)
+    return run_chunk
 
-    history = []
-    bar = None
-    t_start = time.perf_counter()
-    n_iter = 0
-    converged_flags = np.zeros(starts, bool)
+
+# ----------------------------------------- multi-start run with growing horizon
+
+
+class _Progress:
+    """A tqdm bar: shown if `progress` is True, or (None) once the fit has taken 3 s."""
+
+    def __init__(self, progress, total: int):
+        self.progress = progress
+        self.total = total
+        self.bar = None
+        self.t_start = time.perf_counter()
+
+    def update(self, n_iter: int, frac: float, best_now: np.ndarray):
+        if self.progress is not False and self.bar is None and (
+            self.progress or time.perf_counter() - self.t_start > 3.0
+        ):
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=self.total, desc="fit_decay", unit="it", leave=False)
+            self.bar.update(n_iter)
+        elif self.bar is not None:
+            self.bar.update(_CHUNK)
+        if self.bar is not None:
+            self.bar.set_postfix(horizon=f"{frac:.2f}", loss=f"{np.nanmin(best_now):.3e}")
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+@dataclasses.dataclass(eq=False)
+class _Run:
+    """State of the multi-start run, carried from one horizon (stage) to the next."""
+
+    z: object  # (starts, P) current points
+    opt_state: object
+    lm: bool  # the default optimiser: its state keeps the best point of each start
+    keep: np.ndarray  # samples in the fit (False: outliers)
+    converged: np.ndarray  # (starts,) converged on the last stage
+    history: list = dataclasses.field(default_factory=list)  # losses on the last horizon
+    vals: np.ndarray | None = None  # losses of the last chunk (starts, _CHUNK)
+    n_iter: int = 0
+    n_refits: int = 0
+
+    def best_params(self):
+        return self.opt_state.best_params if self.lm else self.z
+
+
+def _run_horizon(problem: _Problem, run_chunk, run: _Run, stage: int, frac: float,
+                 progress: _Progress):
+    """Iterate every start on the first `frac` of the trace until all of them stall (no
+    relative improvement of the best loss over two chunks) or `max_iter` iterations."""
+    params, horizons = problem.params, problem.horizons
+    mask = jnp.asarray(problem.within(frac) & run.keep, dtype=float)
+    # On the first (short) horizon k_f and r are nearly collinear (the early cycles
+    # depend on r, the phase and u0); k_f is held there and freed afterwards.
+    freeze_kf = stage == 0 and len(horizons) > 1 and "k_f" in params and len(params) > 1
+    free = jnp.asarray([0.0 if (p == "k_f" and freeze_kf) else 1.0 for p in params])
+    best_prev = np.full(problem.starts, np.inf)
+    stall = np.zeros(problem.starts, int)
+    stage_iter = 0
+    while stage_iter < problem.max_iter:
+        run.z, run.opt_state, vals, _, _ = run_chunk(run.z, run.opt_state, mask, free)
+        vals = np.asarray(vals)  # (starts, chunk)
+        run.vals = vals
+        run.n_iter += _CHUNK
+        stage_iter += _CHUNK
+        if frac == horizons[-1]:
+            run.history.append(vals)
+        # converged: no relative improvement of the best loss over two chunks
+        finite = np.where(np.isfinite(vals), vals, np.inf)
+        best_now = np.minimum(best_prev, np.min(finite, 1))
+        improved = best_now < best_prev * (1 - problem.tol) - 1e-300
+        stall = np.where(improved, 0, stall + 1)
+        best_prev = best_now
+        run.converged = stall >= 2
+        progress.update(run.n_iter, frac, best_now)
+        if np.all(run.converged):
+            break
+
+
+def _check_outliers(problem: _Problem, misfit: _Misfit, run: _Run) -> bool:
+    """Look for outliers in the fit just finished; update `run.keep`. True: fit again.
+
+    Outliers (spikes) are residuals of the converged fit far outside the spread of the
+    others. They pull a least-squares fit off (a few 0.3 m spikes bias k_f by 5 %): leave
+    them out and fit the whole trace again (see _find_outliers). An unconverged fit is not
+    checked: its residuals are a misfit, not noise.
+    """
+    z_now = np.asarray(run.best_params())
+    last = np.asarray(run.opt_state.best_value) if run.lm else run.vals[:, -1]
+    i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
+    res_now = misfit.respond(jnp.asarray(z_now[i_now]), "reverse")
+    if not (run.converged[i_now] and int(res_now.status) == rockjax.STATUS["completed"]):
+        return False
+    found = _find_outliers(misfit.channels(res_now), ~run.keep,
+                           problem.within(problem.horizons[-1]))
+    # more than a few is a misfit (a wrong minimum, a wrong model), not spikes
+    if (np.count_nonzero(found) > _MAX_OUTLIER_FRACTION * problem.t.size
+            or np.array_equal(found, ~run.keep)):
+        return False
+    run.keep = ~found  # after the last refit: the final statistics only
+    if run.n_refits >= _MAX_REFITS:
+        return False
+    run.n_refits += 1
+    return True
+
+
+def _run_stages(problem: _Problem, misfit: _Misfit, run_chunk, opt, z_start, lm: bool) -> _Run:
+    """The multi-start fit: each horizon in turn, then refits of the whole trace without
+    its outliers (if any)."""
+    z = jnp.asarray(z_start)
+    run = _Run(z=z, opt_state=jax.vmap(opt.init)(z), lm=lm,
+               keep=np.ones(problem.t.size, bool), converged=np.zeros(problem.starts, bool))
+    progress = _Progress(problem.progress, problem.max_iter * len(problem.horizons))
     # Growing horizon: fit the first quarter of the trace, then half, then all of it. Early
     # cycles fix r and the phase; later ones refine k_f. Masks keep every shape, so nothing
     # recompiles between stages.
-    keep = np.ones(t.size, bool)  # samples in the fit (False: outliers, see the stage end)
-    n_refits = 0
-    plan = list(horizons)  # the outlier check appends refits of the whole trace
+    plan = list(problem.horizons)  # the outlier check appends refits of the whole trace
     for stage, frac in enumerate(plan):
-        mask = jnp.asarray((t <= t[0] + frac * (t[-1] - t[0])) & keep, dtype=float)
-        # On the first (short) horizon k_f and r are nearly collinear (the early cycles
-        # depend on r, the phase and u0); k_f is held there and freed afterwards.
-        freeze_kf = stage == 0 and len(horizons) > 1 and "k_f" in params and len(params) > 1
-        free = jnp.asarray([0.0 if (p == "k_f" and freeze_kf) else 1.0 for p in params])
         if stage > 0:
-            z = opt_state.best_params if optimizer is None else z
-            opt_state = jax.vmap(opt.init)(z)
-        best_prev = np.full(starts, np.inf)
-        stall = np.zeros(starts, int)
-        stage_iter = 0
-        while stage_iter < max_iter:
-            z, opt_state, vals, _, _ = run_chunk(z, opt_state, mask, free)
-            vals = np.asarray(vals)  # (starts, chunk)
-            n_iter += chunk
-            stage_iter += chunk
-            if frac == horizons[-1]:
-                history.append(vals)
-            # converged: no relative improvement of the best loss over two chunks
-            finite = np.where(np.isfinite(vals), vals, np.inf)
-            best_now = np.minimum(best_prev, np.min(finite, 1))
-            improved = best_now < best_prev * (1 - tol) - 1e-300
-            stall = np.where(improved, 0, stall + 1)
-            best_prev = best_now
-            converged_flags = stall >= 2
-            if progress is not False and bar is None and (
-                progress or time.perf_counter() - t_start > 3.0
-            ):
-                from tqdm.auto import tqdm
+            run.z = run.best_params()
+            run.opt_state = jax.vmap(opt.init)(run.z)
+        _run_horizon(problem, run_chunk, run, stage, frac, progress)
+        if stage == len(plan) - 1 and _check_outliers(problem, misfit, run):
+            plan.append(problem.horizons[-1])
+    progress.close()
+    return run
 
-                bar = tqdm(total=max_iter * len(horizons), desc="fit_decay", unit="it",
-                           leave=False)
-                bar.update(n_iter)
-            elif bar is not None:
-                bar.update(chunk)
-            if bar is not None:
-                bar.set_postfix(horizon=f"{frac:.2f}", loss=f"{np.nanmin(best_now):.3e}")
-            if np.all(converged_flags):
-                break
-        if stage == len(plan) - 1:
-            # Outliers (spikes): residuals of the converged fit far outside the spread of
-            # the others. They pull a least-squares fit off (a few 0.3 m spikes bias k_f by
-            # 5 %): leave them out and fit the whole trace again (see _find_outliers). An
-            # unconverged fit is not checked: its residuals are a misfit, not noise.
-            z_now = np.asarray(opt_state.best_params if optimizer is None else z)
-            last = np.asarray(opt_state.best_value) if optimizer is None else vals[:, -1]
-            i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
-            res_now = respond(jnp.asarray(z_now[i_now]), "reverse")
-            if converged_flags[i_now] and int(res_now.status) == rockjax.STATUS["completed"]:
-                channels_now = [(np.asarray(res_now.u) - u_meas) / scale]
-                if up_meas is not None and uplift_weight > 0:
-                    channels_now.append(
-                        uplift_weight * (np.asarray(res_now.uplift) - up_meas) / scale)
-                found = _find_outliers(channels_now, ~keep,
-                                       t <= t[0] + horizons[-1] * (t[-1] - t[0]))
-                # more than a few is a misfit (a wrong minimum, a wrong model), not spikes
-                if (np.count_nonzero(found) <= _MAX_OUTLIER_FRACTION * t.size
-                        and not np.array_equal(found, ~keep)):
-                    keep = ~found  # after the last refit: the final statistics only
-                    if n_refits < _MAX_REFITS:
-                        n_refits += 1
-                        plan.append(horizons[-1])
-    if bar is not None:
-        bar.close()
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Best:
+    """The best start, evaluated on the whole trace (outliers left out)."""
+
+    index: int  # of the start
+    z: np.ndarray
+    r: np.ndarray  # residuals
+    J: np.ndarray  # their Jacobian d r / d z
+    loss: float
+    start_losses: np.ndarray  # final loss of every start
+    history: np.ndarray  # its loss at each iteration on the last horizon
+
+
+def _best_start(problem: _Problem, run_chunk, opt, run: _Run) -> _Best:
     # best point of every start, and r, J there (one more chunk evaluates them first)
-    if optimizer is None:
-        z_best = opt_state.best_params
-    else:
-        z_best = z
-    full = jnp.asarray(keep, dtype=float)  # outliers (if any) stay out
+    z_best = run.best_params()
+    full = jnp.asarray(run.keep, dtype=float)  # outliers (if any) stay out
     _, _, vals_b, r_b, J_b = run_chunk(z_best, jax.vmap(opt.init)(z_best), full,
-                                       jnp.ones(len(params)))
+                                       jnp.ones(len(problem.params)))
     final_losses = np.asarray(vals_b)[:, 0]
     i_best = int(np.nanargmin(np.where(np.isfinite(final_losses), final_losses, np.inf)))
-    zb = np.asarray(z_best)[i_best]
-    r = np.asarray(r_b)[i_best]
-    J = np.asarray(J_b)[i_best]
-    loss = float(final_losses[i_best])
-    hist = np.concatenate(history, axis=1)[i_best]
+    return _Best(
+        index=i_best,
+        z=np.asarray(z_best)[i_best],
+        r=np.asarray(r_b)[i_best],
+        J=np.asarray(J_b)[i_best],
+        loss=float(final_losses[i_best]),
+        start_losses=final_losses,
+        history=np.concatenate(run.history, axis=1)[i_best],
+    )
 
-    # uncertainty: Gauss-Newton / Fisher information, in natural coordinates. The fit
-    # minimises unweighted least squares over the channels (displacement, uplift), whose
-    # noise levels differ, so the covariance is the sandwich A^-1 B A^-1 with A = J^T J,
-    # B = J^T diag(sigma_c^2) J and sigma_c^2 = RSS_c / (N_c - P share) for each channel.
+
+# ------------------------------------------------------------------ uncertainty
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Uncertainty:
+    values: dict  # natural values of all of PARAM_NAMES at the optimum
+    derivatives: list  # d(natural value)/dz of each fitted parameter
+    se: np.ndarray  # standard errors (natural units)
+    corr: np.ndarray  # correlation matrix
+    sigma: float  # estimated noise std of the displacement [m]
+
+
+def _uncertainty(problem: _Problem, transform: _Transform, best: _Best,
+                 keep: np.ndarray) -> _Uncertainty:
+    """Standard errors and correlations at the optimum (Gauss-Newton / Fisher information).
+
+    In natural coordinates. The fit minimises unweighted least squares over the channels
+    (displacement, uplift), whose noise levels differ, so the covariance is the sandwich
+    A^-1 B A^-1 with A = J^T J, B = J^T diag(sigma_c^2) J and sigma_c^2 = RSS_c / (N_c - P
+    share) for each channel.
+    """
+    J, r = best.J, best.r
     n_res, n_par = J.shape
-    n_u = t.size
+    n_u = problem.t.size
     channels = [slice(0, n_u)] + ([slice(n_u, n_res)] if n_res > n_u else [])
     var = np.empty(n_res)
     sig2 = []
@@ -497,18 +749,8 @@ def fit_decay(
         sig2.append(s2)
         var[ch] = s2
     sigma2 = sig2[0]
-    vals_nat = {k: float(v) for k, v in decode(jnp.asarray(zb)).items()}
-    dtheta_dz = []
-    for p, zi in zip(params, zb):
-        if p == "k_f":
-            dtheta_dz.append(math.exp(zi))
-        elif p == "r":
-            s_ = 1.0 / (1.0 + math.exp(-zi))
-            dtheta_dz.append(s_ * (1 - s_))
-        elif p == "u0":
-            dtheta_dz.append(scale)
-        else:
-            dtheta_dz.append(_T_SCALE)
+    vals_nat = {k: float(v) for k, v in transform.decode(jnp.asarray(best.z)).items()}
+    dtheta_dz = transform.derivatives(best.z)
     D = np.diag(dtheta_dz)
     try:
         a_inv = np.linalg.inv(J.T @ J)
@@ -518,15 +760,22 @@ def fit_decay(
     except np.linalg.LinAlgError:
         se = np.full(n_par, np.inf)
         corr = np.full((n_par, n_par), np.nan)
+    return _Uncertainty(values=vals_nat, derivatives=dtheta_dz, se=se, corr=corr,
+                        sigma=math.sqrt(sigma2) * problem.scale)
 
-    # identifiability: RMS change of the displacement trace [m] for a 1 % change of each
-    # parameter (t0: for 1 ms), against the noise level
-    Ju = J[:n_u] * scale  # d u / d z [m]
+
+def _identifiability(problem: _Problem, best: _Best, unc: _Uncertainty):
+    """(the `FitResult.identifiability` dict, the messages of the IdentifiabilityWarning's).
+
+    The sensitivity of a parameter is the RMS change of the displacement trace [m] for a
+    1 % change of it (t0: for 1 ms), to compare with the noise level.
+    """
+    params, vals_nat, se, sigma = problem.params, unc.values, unc.se, unc.sigma
+    Ju = best.J[:problem.t.size] * problem.scale  # d u / d z [m]
     sens = {}
     for j, p in enumerate(params):
         per = 0.01 * abs(vals_nat[p]) if p != "t0" else 1e-3
-        sens[p] = float(np.sqrt(np.mean((Ju[:, j] / dtheta_dz[j] * per) ** 2)))
-    sigma = math.sqrt(sigma2) * scale
+        sens[p] = float(np.sqrt(np.mean((Ju[:, j] / unc.derivatives[j] * per) ** 2)))
     ident = {
         "sensitivity_per_percent": sens,
         "noise_sigma": sigma,
@@ -534,7 +783,7 @@ def fit_decay(
                             for j, p in enumerate(params)},
     }
     if "k_f" in params and "r" in params:
-        ident["corr_k_f_r"] = float(corr[params.index("k_f"), params.index("r")])
+        ident["corr_k_f_r"] = float(unc.corr[params.index("k_f"), params.index("r")])
     messages = []
     for j, p in enumerate(params):
         rel = se[j] / abs(vals_nat[p]) if vals_nat[p] else np.inf
@@ -549,40 +798,50 @@ def fit_decay(
             f"k_f and r are strongly correlated (rho = {ident['corr_k_f_r']:.3f}): the trace "
             "constrains a combination of them, not each"
         )
-    for m in messages:
-        warnings.warn(m, IdentifiabilityWarning, stacklevel=2)
+    return ident, messages
 
-    response = respond(jnp.asarray(zb), "reverse")
-    u_fit = np.asarray(response.u)
+
+def _outlier_message(problem: _Problem, u_fit: np.ndarray, keep: np.ndarray,
+                     sigma: float) -> str | None:
+    """The OutlierWarning's message, or None when no sample was left out."""
     outliers = np.flatnonzero(~keep)
-    if outliers.size:
-        worst = outliers[np.argmax(np.abs(u_fit - u_meas)[outliers])]
-        msg = (
-            f"{outliers.size} sample(s) of the trace lie more than {OUTLIER_SIGMAS:g} robust "
-            f"standard deviations from the fit (largest displacement residual "
-            f"{abs(u_fit[worst] - u_meas[worst]):.3g} m at t = {t[worst]:.6g} s; noise "
-            f"sigma {sigma:.3g} m): they were left out and the fit repeated without them "
-            "(indices in FitResult.outliers)"
-        )
-        messages.append(msg)
-        warnings.warn(msg, OutlierWarning, stacklevel=2)
-    converged = bool(converged_flags[i_best]) and np.isfinite(loss) and loss < 1e5
+    if not outliers.size:
+        return None
+    t, u_meas = problem.t, problem.u_meas
+    worst = outliers[np.argmax(np.abs(u_fit - u_meas)[outliers])]
+    return (
+        f"{outliers.size} sample(s) of the trace lie more than {OUTLIER_SIGMAS:g} robust "
+        f"standard deviations from the fit (largest displacement residual "
+        f"{abs(u_fit[worst] - u_meas[worst]):.3g} m at t = {t[worst]:.6g} s; noise "
+        f"sigma {sigma:.3g} m): they were left out and the fit repeated without them "
+        "(indices in FitResult.outliers)"
+    )
+
+
+# ---------------------------------------------------------------------- result
+
+
+def _result(problem: _Problem, run: _Run, best: _Best, unc: _Uncertainty, ident: dict,
+            messages: list, response) -> FitResult:
+    params, vals_nat, loss, keep = problem.params, unc.values, best.loss, run.keep
+    u_fit = np.asarray(response.u)
+    converged = bool(run.converged[best.index]) and np.isfinite(loss) and loss < 1e5
     return FitResult(
         names=params,
         values={p: vals_nat[p] for p in params},
-        stderr={p: float(se[j]) for j, p in enumerate(params)},
+        stderr={p: float(unc.se[j]) for j, p in enumerate(params)},
         fixed={p: vals_nat[p] for p in PARAM_NAMES if p not in params},
-        correlation=np.asarray(corr),
+        correlation=np.asarray(unc.corr),
         loss=loss,
-        rms=float(np.sqrt(np.mean((u_fit - u_meas)[keep] ** 2))),
-        sigma=sigma,
-        loss_history=hist,
-        start_losses=final_losses,
+        rms=float(np.sqrt(np.mean((u_fit - problem.u_meas)[keep] ** 2))),
+        sigma=unc.sigma,
+        loss_history=best.history,
+        start_losses=best.start_losses,
         response=response,
         converged=converged,
-        n_iterations=n_iter,
+        n_iterations=run.n_iter,
         identifiability=ident,
         warnings=tuple(messages),
-        scale=scale,
-        outliers=outliers,
+        scale=problem.scale,
+        outliers=np.flatnonzero(~keep),
     )

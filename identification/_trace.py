@@ -230,71 +230,12 @@ def read_trace(path) -> DecayTrace:
     name = str(path)
     with _open_text(path) as f:
         lines = f.read().splitlines()
-
-    def err(lineno: int, msg: str) -> ValueError:
-        return ValueError(f"{name}, line {lineno}: {msg}")
-
-    # header: first line that is neither blank nor a comment
-    header_line = None
-    for i, raw in enumerate(lines):
-        s = raw.strip()
-        if s and not s.startswith("#"):
-            header_line = i
-            break
-    if header_line is None:
-        what = "empty file" if not any(x.strip() for x in lines) else "only comment lines"
-        raise err(max(len(lines), 1), f"{what}; expected a header line {_EXPECTED_HEADER}")
-    cols = tuple(c.strip().lower() for c in lines[header_line].split(","))
-    if cols not in _HEADERS:
-        raise err(
-            header_line + 1,
-            f"expected header {_EXPECTED_HEADER}, got {lines[header_line].strip()!r}",
-        )
-    ncol = len(cols)
-
-    rows: list[tuple[float, ...]] = []
-    linenos: list[int] = []
-    for i in range(header_line + 1, len(lines)):
-        lineno = i + 1
-        s = lines[i].strip()
-        if not s:
-            continue
-        fields = [x.strip() for x in s.split(",")]
-        if len(fields) != ncol:
-            raise err(
-                lineno,
-                f"expected {ncol} values ({','.join(cols)}), got {len(fields)}: {s!r}",
-            )
-        vals = []
-        for col, x in zip(cols, fields, strict=True):
-            try:
-                v = float(x)
-            except ValueError:
-                raise err(lineno, f"column {col!r}: {x!r} is not a number") from None
-            if not math.isfinite(v):
-                raise err(lineno, f"column {col!r}: value {x!r} is not finite")
-            vals.append(v)
-        if rows:
-            t_prev = rows[-1][0]
-            if vals[0] == t_prev:
-                raise err(
-                    lineno,
-                    f"time {vals[0]!r} s repeats the previous sample (line {linenos[-1]}); "
-                    "time must be strictly increasing",
-                )
-            if vals[0] < t_prev:
-                raise err(
-                    lineno,
-                    f"time goes backwards: {vals[0]!r} s after {t_prev!r} s "
-                    f"(line {linenos[-1]}); time must be strictly increasing",
-                )
-        rows.append(tuple(vals))
-        linenos.append(lineno)
-
+    header_line, cols = _read_header(name, lines)
+    rows, linenos = _read_rows(name, lines, header_line, cols)
     if len(rows) < MIN_SAMPLES:
         last = linenos[-1] if linenos else header_line + 1
-        raise err(
-            last,
+        raise _line_error(
+            name, last,
             f"only {len(rows)} sample(s) after the header (line {header_line + 1}); "
             f"at least {MIN_SAMPLES} are needed",
         )
@@ -303,13 +244,95 @@ def read_trace(path) -> DecayTrace:
     gap = _first_gap(t)
     if gap is not None:
         k, step, med = gap
-        raise err(
-            linenos[k],
+        raise _line_error(
+            name, linenos[k],
             f"gap in time of {step:g} s at line {linenos[k]} (from t = {t[k - 1]:g} s to "
             f"{t[k]:g} s, more than {MAX_GAP_RATIO:g} x the median step {med:g} s); "
             "split the trace or resample",
         )
-    return DecayTrace(t=t, u=data[:, 1], uplift=data[:, 2] if ncol == 3 else None, source=name)
+    uplift = data[:, 2] if len(cols) == 3 else None
+    return DecayTrace(t=t, u=data[:, 1], uplift=uplift, source=name)
+
+
+def _line_error(name: str, lineno: int, msg: str) -> ValueError:
+    """The ValueError for line `lineno` (1-based) of the file `name`."""
+    return ValueError(f"{name}, line {lineno}: {msg}")
+
+
+def _read_header(name: str, lines: list[str]) -> tuple[int, tuple[str, ...]]:
+    """(index of the header line, its column names): the first line that is neither blank
+    nor a comment, which must be one of `_HEADERS`."""
+    header_line = None
+    for i, raw in enumerate(lines):
+        s = raw.strip()
+        if s and not s.startswith("#"):
+            header_line = i
+            break
+    if header_line is None:
+        what = "empty file" if not any(x.strip() for x in lines) else "only comment lines"
+        raise _line_error(name, max(len(lines), 1),
+                          f"{what}; expected a header line {_EXPECTED_HEADER}")
+    cols = tuple(c.strip().lower() for c in lines[header_line].split(","))
+    if cols not in _HEADERS:
+        raise _line_error(
+            name, header_line + 1,
+            f"expected header {_EXPECTED_HEADER}, got {lines[header_line].strip()!r}",
+        )
+    return header_line, cols
+
+
+def _read_rows(name: str, lines: list[str], header_line: int, cols: tuple[str, ...]):
+    """(the rows of values after the header, their 1-based line numbers); blank lines are
+    skipped, and time must strictly increase."""
+    rows: list[tuple[float, ...]] = []
+    linenos: list[int] = []
+    for i in range(header_line + 1, len(lines)):
+        lineno = i + 1
+        s = lines[i].strip()
+        if not s:
+            continue
+        vals = _parse_row(name, lineno, s, cols)
+        if rows:
+            _check_time_step(name, lineno, vals[0], rows[-1][0], linenos[-1])
+        rows.append(tuple(vals))
+        linenos.append(lineno)
+    return rows, linenos
+
+
+def _parse_row(name: str, lineno: int, s: str, cols: tuple[str, ...]) -> list[float]:
+    """The finite values of the (stripped, non-blank) row `s`, one per column."""
+    fields = [x.strip() for x in s.split(",")]
+    if len(fields) != len(cols):
+        raise _line_error(
+            name, lineno,
+            f"expected {len(cols)} values ({','.join(cols)}), got {len(fields)}: {s!r}",
+        )
+    vals = []
+    for col, x in zip(cols, fields, strict=True):
+        try:
+            v = float(x)
+        except ValueError:
+            raise _line_error(name, lineno, f"column {col!r}: {x!r} is not a number") from None
+        if not math.isfinite(v):
+            raise _line_error(name, lineno, f"column {col!r}: value {x!r} is not finite")
+        vals.append(v)
+    return vals
+
+
+def _check_time_step(name: str, lineno: int, t: float, t_prev: float, prev_lineno: int):
+    """ValueError unless the time `t` of line `lineno` exceeds the previous sample's."""
+    if t == t_prev:
+        raise _line_error(
+            name, lineno,
+            f"time {t!r} s repeats the previous sample (line {prev_lineno}); "
+            "time must be strictly increasing",
+        )
+    if t < t_prev:
+        raise _line_error(
+            name, lineno,
+            f"time goes backwards: {t!r} s after {t_prev!r} s "
+            f"(line {prev_lineno}); time must be strictly increasing",
+        )
 
 
 def synthetic_trace_path(name: str):
@@ -360,9 +383,9 @@ def _packaged(name: str, suffix: str):
         raise ValueError(
             f"unknown synthetic trace {name!r}; expected one of {', '.join(SYNTHETIC_TRACES)}"
         )
-    from rockjax._structure import _data_file  # lazy: reading traces needs no JAX
+    import rockjax  # lazy: reading a trace file needs no JAX
 
-    res = _data_file(name + suffix)
+    res = rockjax.datasets.packaged_data_path(name + suffix)
     if not res.is_file():
         raise FileNotFoundError(
             f"synthetic trace file {name + suffix} not found (expected at {res}); "

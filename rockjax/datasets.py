@@ -25,6 +25,10 @@ Resolution order (see :func:`el_centro_path`):
 
 The cache directory is ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax``, else
 ``~/.cache/rockjax``.
+
+The files that rockjax does ship (the repository's ``data/`` folder, installed as the
+package ``rockjax._data``: the Table 1 structure and the synthetic decay traces) are found
+with :func:`packaged_data_path`.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ import tempfile
 import urllib.request
 
 from rockjax._records import read_record, Record
+from rockjax._structure import _data_file
 
 __all__ = [
     "EL_CENTRO_FILENAME",
@@ -45,6 +50,7 @@ __all__ = [
     "cache_dir",
     "el_centro",
     "el_centro_path",
+    "packaged_data_path",
 ]
 
 EL_CENTRO_URL = (
@@ -241,3 +247,28 @@ def synthetic_ground_motion(
         description="SYNTHETIC ground motion: filtered white noise, not a recorded earthquake",
         units_in_file="m/s2",
     )
+
+
+def packaged_data_path(name: str):
+    """The file `name` shipped with rockjax (the repository's ``data/`` folder).
+
+    Parameters
+    ----------
+    name : str
+        A plain file name, e.g. ``"mcmanus_column.toml"`` or ``"synthetic_decay_noisy.csv"``.
+
+    Returns
+    -------
+    importlib.resources.abc.Traversable or pathlib.Path
+        The file in the installed package ``rockjax._data``, else (a source checkout) in
+        ``data/`` next to the ``rockjax`` package. It is not checked to exist: use
+        ``.is_file()``; open it with ``.open()``.
+
+    Raises
+    ------
+    ValueError
+        If `name` is not a plain file name (empty, a directory part, ``.`` or ``..``).
+    """
+    if not isinstance(name, str) or name in ("", ".", "..") or any(c in name for c in "/\\"):
+        raise ValueError(f"packaged_data_path: expected a plain file name, got {name!r}")
+    return _data_file(name)

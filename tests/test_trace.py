@@ -80,6 +80,18 @@ def test_synthetic_unknown_name():
         synthetic_trace_path("nope")
 
 
+def test_packaged_data_path():
+    # the public lookup that identification uses for the shipped files
+    p = rockjax.datasets.packaged_data_path("synthetic_decay_clean.csv")
+    assert p.is_file()
+    assert str(p) == str(synthetic_trace_path("synthetic_decay_clean"))
+    assert rockjax.datasets.packaged_data_path("mcmanus_column.toml").is_file()
+    assert not rockjax.datasets.packaged_data_path("no_such_file.csv").is_file()
+    for bad in ("", ".", "..", "sub/x.csv", "..\\x.csv"):
+        with pytest.raises(ValueError, match="plain file name"):
+            rockjax.datasets.packaged_data_path(bad)
+
+
 @pytest.fixture(scope="module")
 def resimulated_clean():
     """The clean trace re-simulated from its sidecar (the only simulate call here)."""

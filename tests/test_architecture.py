@@ -283,7 +283,6 @@ class Contract(NamedTuple):
     sources: tuple[str, ...]  # folders (repository-relative) whose files it constrains
     excluded: tuple[str, ...]  # folders inside `sources` it does not constrain
     forbidden: Callable[[str], bool]  # on the imported absolute dotted name
-    xfail: str | None = None  # reason, while the current tree still breaks the contract
 
 
 CONTRACTS = [
@@ -365,12 +364,6 @@ def test_internal_imports_resolve(modules):
     assert not dangling, "imports of modules that do not exist:\n  " + "\n  ".join(dangling)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="known import cycles in rockjax today (_batch <-> _simulate, _simulate <-> "
-    "_twospring, _restoring <-> _twospring); remove this marker once the restructuring "
-    "has broken them",
-)
 def test_no_import_cycles(modules):
     graph = import_graph(modules)
     cycles = find_cycles(graph)
@@ -383,26 +376,13 @@ def test_no_import_cycles(modules):
     )
 
 
-@pytest.mark.parametrize(
-    "contract",
-    [
-        pytest.param(c, id=c.id, marks=[pytest.mark.xfail(strict=False, reason=c.xfail)])
-        if c.xfail
-        else pytest.param(c, id=c.id)
-        for c in CONTRACTS
-    ],
-)
+@pytest.mark.parametrize("contract", [pytest.param(c, id=c.id) for c in CONTRACTS])
 def test_layering_contract(contract, modules):
     # A source folder that does not exist (yet) has no files: the contract holds vacuously.
     violations = contract_violations(contract, modules)
     assert not violations, f"contract broken: {contract.rule}:\n  " + "\n  ".join(violations)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="several functions are 80-350 lines long today (fit_decay, _fast.run, _simulate, "
-    "simulate_batch, build_parser, ...); remove this marker once they are split",
-)
 def test_function_length():
     limit = lengths.MAX_FUNCTION_LINES
     offenders = [f for f in lengths.all_function_lengths(REPO, SOURCE_ROOTS) if f.lines > limit]

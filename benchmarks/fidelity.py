@@ -4,7 +4,7 @@
 
 Compares the SDOF models "housner", "simplified", "exact" and "smooth" (`rockjax.simulate`,
 default method "diffrax", default tolerances, the paper's impact rule) with the reference
-model "two_spring_2dof" (`rockjax._twospring.TwoSpring2DOF`: the rigid body on two
+model "two_spring_2dof" (`rockjax.TwoSpring2DOF`: the rigid body on two
 compression-only springs, geometrically exact, no-slip pivot), on the Table 1 column:
 
 - free-vibration releases u0 = 0.05, 0.10, 0.20 m (4 s);
@@ -49,7 +49,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import rockjax  # noqa: E402
-from rockjax._twospring import linearised_frequency, TwoSpring2DOF  # noqa: E402
+from rockjax.models import linearised_frequency, TwoSpring2DOF  # noqa: E402
 
 HERE = pathlib.Path(__file__).resolve().parent
 DEFAULT_RECORD = "/work/shared/data/ground_motions/IELC180.AT2"

@@ -32,6 +32,13 @@ from ._pushover import (  # noqa: E402
 )
 from ._records import read_record as read_record, Record as Record  # noqa: E402
 from ._response import Response as Response, STATUS as STATUS  # noqa: E402
+from ._simulate import simulate as simulate  # noqa: E402
+from ._status import Status as Status  # noqa: E402
+from ._structure import (  # noqa: E402
+    DERIVED as DERIVED,
+    mcmanus_column as mcmanus_column,
+    RockingStructure as RockingStructure,
+)
 from .models import (  # noqa: E402
     AbstractRestoringForce as AbstractRestoringForce,
     AbstractRockingModel as AbstractRockingModel,
@@ -45,13 +52,6 @@ from .models import (  # noqa: E402
     Simplified as Simplified,
     Smooth as Smooth,
     TwoSpring2DOF as TwoSpring2DOF,
-)
-from ._simulate import simulate as simulate  # noqa: E402
-from ._status import Status as Status  # noqa: E402
-from ._structure import (  # noqa: E402
-    DERIVED as DERIVED,
-    mcmanus_column as mcmanus_column,
-    RockingStructure as RockingStructure,
 )
 
 __version__ = "0.1.0"

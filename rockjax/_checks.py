@@ -71,7 +71,7 @@ def check_r(r) -> None:
 def check_settings(*, method, rtol, atol, max_impacts, dt, substeps, max_steps=1) -> None:
     """Checks of the solver settings common to both entry points."""
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise ValueError(f"method must be 'diffrax', 'rk4' or 'dopri5', got {method!r}")
     for name, val in (("rtol", rtol), ("atol", atol)):
         if not (isinstance(val, (int, float)) and val > 0):
             raise ValueError(f"{name} must be a positive number, got {val!r}")

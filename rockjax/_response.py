@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._status import STATUS as STATUS, STATUS_NAMES as STATUS_NAMES
+from ._status import STATUS as STATUS, status_message, status_name, STATUS_NAMES as STATUS_NAMES
 
 
 class Response(eqx.Module):
@@ -37,7 +37,7 @@ class Response(eqx.Module):
     @property
     def status_name(self) -> str:
         """The status as text (for an unbatched response)."""
-        return STATUS_NAMES[int(self.status)]
+        return status_name(self.status)
 
     @property
     def message(self) -> str:
@@ -62,12 +62,7 @@ class Response(eqx.Module):
                 "where method=\"dopri5\" is the better remedy)"
             )
             return f"max_impacts: {why}; raise max_impacts to continue"
-        return (
-            "solver_failure: the integration failed (non-finite state or step budget "
-            "exhausted, typically a very stiff foundation k_f); use model=\"housner\" "
-            "(the rigid limit k_f -> infinity), a fixed-step setting (method=\"rk4\" with "
-            "more substeps, or dt=), method=\"dopri5\", or a larger max_steps"
-        )
+        return f"solver_failure: {status_message(self.status)}"
 
     @property
     def impacts(self) -> np.ndarray:

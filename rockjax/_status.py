@@ -9,7 +9,6 @@ NumPy, pandas and `jax.vmap` handle); `status_name(code)`, `status_message(code)
 from __future__ import annotations
 
 import equinox as eqx
-import numpy as np
 
 
 class Status(eqx.Enumeration):

@@ -28,7 +28,7 @@ def shared_ground_motions() -> pathlib.Path:
 def run_cli(*args, cwd=None):
     """Run the real console entry point in a subprocess (as a user would)."""
     return subprocess.run(
-        [sys.executable, "-m", "rockjax._cli", *args],
+        [sys.executable, "-m", "rockjax.cli", *args],
         capture_output=True,
         text=True,
         cwd=cwd,

@@ -580,3 +580,18 @@ def test_line_counter():
     assert got == {"outer": (6, 11), "outer.inner": (13, 5), "K.method": (26, 2)}
     assert lengths.function_lengths("def f():\n    '''Only a docstring.'''\n")[0].lines == 1
     assert str(lengths.FunctionLength("m.py", 6, "outer", 11)) == "m.py:6 outer() has 11 lines"
+
+
+def test_every_package_ships_in_the_wheel():
+    """pyproject's explicit package list names every package folder (a subpackage left
+    out installs from a checkout but is missing from a wheel)."""
+    import tomllib
+
+    listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "packages"])
+    found = {
+        ".".join(p.parent.relative_to(REPO).parts)
+        for root in ("rockjax", "identification")
+        for p in (REPO / root).rglob("__init__.py")
+    }
+    assert found <= listed, f"packages missing from pyproject.toml: {sorted(found - listed)}"

@@ -7,7 +7,7 @@ import json
 import pytest
 from conftest import run_cli
 
-from rockjax._cli import main
+from rockjax.cli import main
 
 
 def test_help():

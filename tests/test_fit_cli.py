@@ -16,7 +16,7 @@ import pytest
 from conftest import run_cli
 
 import identification
-from rockjax._cli import main
+from rockjax.cli import main
 
 CLEAN = "synthetic_decay_clean"
 NOISY = "synthetic_decay_noisy"

@@ -18,7 +18,8 @@ import pytest
 from conftest import run_cli
 
 import rockjax
-from rockjax._cli import _scales, main
+from rockjax.cli import main
+from rockjax.cli._common import _scales
 
 SCALES = [0.5, 1.0, 2.5]
 T1 = 6.0

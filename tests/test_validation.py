@@ -29,8 +29,8 @@ from rockjax import (
     simulate,
     simulate_batch,
     Smooth,
+    TwoSpring2DOF,
 )
-from rockjax import TwoSpring2DOF
 from rockjax.cli import main
 
 DOC = REPO / "docs" / "validation.md"

@@ -195,7 +195,10 @@ def restoring_force(structure, u, model="simplified"):
             )
         model = LAWS[model]()
     if not isinstance(model, AbstractRestoringForce):
-        raise ValueError(f"model must be a restoring-force law, got {type(model).__name__}")
+        raise ValueError(
+            f"model must be one of {', '.join(repr(m) for m in LAWS)}, 'two_spring_2dof' or "
+            f"an AbstractRestoringForce instance, got {model!r}"
+        )
     return model(structure, u)
 
 

@@ -1,0 +1,47 @@
+"""The `rockjax` command line: `rockjax demo`, `rockjax pushover`, `rockjax sweep`, ...
+
+One module per command, each with `add_parser(subparsers)` and `run(args)`; shared pieces
+are in `_common`. Every bad input ends with a non-zero exit code and a one-line message on
+stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from . import demo, fit, pushover, simulate, sweep
+from ._common import _first_line, _Parser, CLIError, EXIT_USAGE
+
+#: the sub-commands, in the order `rockjax --help` lists them
+COMMANDS = (demo, pushover, simulate, fit, sweep)
+
+
+def build_parser():
+    p = _Parser(
+        prog="rockjax",
+        description="Differentiable simulator of rigid structures rocking on a two-spring "
+        "foundation (SI units throughout).",
+    )
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for command in COMMANDS:
+        command.add_parser(sub)
+    return p
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return EXIT_USAGE
+    try:
+        return args.func(args)
+    except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
+        print(f"rockjax {args.command}: error: {_first_line(e)}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as e:
+        print(f"rockjax {args.command}: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+__all__ = ["build_parser", "CLIError", "COMMANDS", "EXIT_USAGE", "main"]

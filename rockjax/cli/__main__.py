@@ -1,0 +1,7 @@
+"""`python -m rockjax.cli`: the `rockjax` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -1,0 +1,223 @@
+"""Shared pieces of the `rockjax` command line: the one-line-error parser, `CLIError`,
+argument converters, structure loading, output checks and CSV writing."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pathlib
+
+import numpy as np
+
+import rockjax
+
+EXIT_USAGE = 2
+
+#: the longest run the CLI accepts, in output samples or record steps
+_MAX_STEPS = 10_000_000
+#: the most scale factors a START:STOP:N range may give
+_MAX_SCALES = 1_000_000
+
+
+class CLIError(Exception):
+    """A user-facing error: printed as one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, no usage dump
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def _first_line(e):
+    """The first line of an exception's message, or its type's name when it has none."""
+    return str(e).splitlines()[0] if str(e) else type(e).__name__
+
+
+# ------------------------------------------------------------------ argument converters
+def _positive_float(name):
+    def conv(text):
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(x) or x <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be a positive number, got {text!r}")
+        return x
+
+    return conv
+
+
+def _finite_float(name):
+    def conv(text):
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(x):
+            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
+        return x
+
+    return conv
+
+
+def _positive_int(name):
+    def conv(text):
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if n < 1:
+            raise argparse.ArgumentTypeError(f"{name} must be a positive integer, got {n}")
+        return n
+
+    return conv
+
+
+def _points(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--points must be an integer, got {text!r}") from None
+    if n < 2:
+        raise argparse.ArgumentTypeError(f"--points must be at least 2, got {n}")
+    return n
+
+
+def _starts(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--starts must be an integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"--starts must be at least 1, got {n}")
+    return n
+
+
+def _scale_range(text, parts):
+    """START, STOP and N of a "START:STOP:N" range (N checked, START and STOP not yet)."""
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"a range is START:STOP:N, got {text!r}")
+    try:
+        a, b = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"START and STOP of START:STOP:N must be numbers, got {text!r}"
+        ) from None
+    try:
+        n = int(parts[2])
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"N of START:STOP:N must be an integer, got {text!r}"
+        ) from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"N of START:STOP:N must be at least 1, got {n}")
+    if n > _MAX_SCALES:
+        raise argparse.ArgumentTypeError(
+            f"N of START:STOP:N must be at most {_MAX_SCALES}, got {n}"
+        )
+    return a, b, n
+
+
+def _scale_list(text, t):
+    """The numbers of a comma list "0.5,1,1.5" (not yet checked for sign or finiteness)."""
+    values = []
+    for item in t.split(","):
+        try:
+            values.append(float(item))
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected a comma list of numbers such as 0.5,1,1.5 or a range "
+                f"START:STOP:N, got {text!r}"
+            ) from None
+    return values
+
+
+def _scales(text):
+    """--scales: a comma list "0.5,1,1.5" or a range "START:STOP:N" (N points, inclusive)."""
+    t = text.strip()
+    if ":" in t:
+        a, b, n = _scale_range(text, t.split(":"))
+        values = [a, b]
+    else:
+        values = _scale_list(text, t)
+    for x in values:
+        if not math.isfinite(x) or x <= 0:
+            raise argparse.ArgumentTypeError(
+                f"scale factors must be positive and finite, got {text!r}"
+            )
+    if ":" in t:
+        return [float(x) for x in np.linspace(values[0], values[1], n)]
+    return values
+
+
+# ------------------------------------------------------------------------ input checks
+def _load_structure(path):
+    """The structure of a TOML file, or the Table 1 McManus column when `path` is None."""
+    if path is None:
+        return rockjax.mcmanus_column()
+    return rockjax.RockingStructure.from_toml(path)
+
+
+def _check_r(r):
+    if r is not None and not 0.0 <= r <= 1.0:
+        raise CLIError(f"--r must lie in [0, 1], got {r}")
+
+
+def _check_t1_steps(t1, dt, what):
+    """A one-line error naming --t1, rather than numpy's size error, for absurd run lengths."""
+    n = t1 / dt
+    if not n <= _MAX_STEPS:
+        raise CLIError(
+            f"--t1 {t1:g} s is {n:.3g} {what} of {dt:g} s, more than {_MAX_STEPS:,}; shorten --t1"
+        )
+
+
+# ----------------------------------------------------------------------------- outputs
+def _check_png(path):
+    if path is not None and pathlib.Path(path).suffix.lower() not in (".png", ".pdf", ".svg"):
+        raise CLIError(f"--plot must end in .png, .pdf or .svg, got {path}")
+
+
+def _check_out_dir(option, path):
+    if path is None:
+        return
+    p = pathlib.Path(path)
+    if p.is_dir():
+        raise CLIError(f"{option} is a directory: {path}")
+    if not p.parent.is_dir():
+        raise CLIError(f"{option}: directory not found: {p.parent}")
+
+
+def _write_csv(path, columns, names):
+    data = np.column_stack([np.asarray(columns[k]) for k in names])
+    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+
+
+_UNITS = {
+    "W": "N",
+    "H_c": "m",
+    "R_c": "m",
+    "alpha_c": "rad",
+    "R_e": "m",
+    "alpha_e": "rad",
+    "R_b": "m",
+    "alpha_b": "rad",
+    "delta_0": "m",
+    "theta_crit": "rad",
+    "u_crit": "m",
+    "K1": "N/m",
+    "P_crit": "N",
+    "P_crit2": "N",
+    "u_overturn": "m",
+    "restitution": "-",
+}
+
+
+def _derived_table(derived):
+    """The derived quantities of a structure as a text table (angles also in degrees)."""
+    lines = [f"{'quantity':<14}{'value':>14}  unit"]
+    for k, unit in _UNITS.items():
+        v = derived[k]
+        extra = f"  ({derived[k + '_deg']:.4f} deg)" if k + "_deg" in derived else ""
+        lines.append(f"{k:<14}{v:>14.6g}  {unit}{extra}")
+    return "\n".join(lines)

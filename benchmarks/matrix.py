@@ -1,6 +1,8 @@
 """Every model of the ladder on every integrator, on ordinary and adversarial inputs.
 
-    python benchmarks/matrix.py            # writes docs/matrix.md
+    python benchmarks/matrix.py                      # writes docs/matrix.md
+    python benchmarks/matrix.py --real ../shared/data/ground_motions   # adds IELC180
+                                      # with leading zeros and ChiChi.dat (real records)
 
 The corpus is made by the project (`rockjax.datasets.synthetic_ground_motion`, seed 0),
 so it needs no file from outside the repository: leading zeros (0, 1, 10, 100 and 1000
@@ -134,13 +136,39 @@ def markdown(results, times):
     return "\n".join(lines)
 
 
+def real_records(folder):
+    """The default model on IELC180 with 0 to 1000 zeros in front and on ChiChi.dat (2 s of
+    zeros at its start), every integrator at `simulate`'s defaults: a markdown table."""
+    s = rockjax.mcmanus_column()
+    lines = ["## Real records with quiet starts (model simplified, `rockjax.simulate` "
+             "defaults)", "", "| record | " + " | ".join(METHODS) + " | largest relative "
+             "peak difference |", "|---|" + "---|" * (len(METHODS) + 1)]
+    el = rockjax.read_record(pathlib.Path(folder) / "IELC180.AT2", units="g")
+    cc = rockjax.read_record(pathlib.Path(folder) / "ChiChi.dat", units="g")
+    runs = [(f"IELC180, {n} zeros in front", el, n) for n in (0, 1, 10, 100, 1000)]
+    runs.append(("ChiChi.dat (starts with 2 s of zeros)", cc, 0))
+    for name, rec, n in runs:
+        gm = rockjax.GroundMotion(dt=rec.dt, accel=np.concatenate([np.zeros(n), rec.accel]))
+        t1 = float(gm.duration)
+        cells = [rockjax.simulate(s, gm, t1, method=m) for m in METHODS]
+        peaks = np.array([float(r.peak_u) for r in cells])
+        worst = np.max(np.abs(peaks - peaks[0])) / peaks[0]
+        lines.append(f"| {name} | " + " | ".join(
+            f"{1e3 * float(r.peak_u):.5f} mm / {int(r.n_impacts)} / {r.status_name}"
+            for r in cells) + f" | {worst:.1e} |")
+    return "\n".join(lines + [""])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(pathlib.Path(__file__).parents[1] / "docs" /
                                          "matrix.md"))
+    ap.add_argument("--real", metavar="DIR", help="folder with IELC180.AT2 and ChiChi.dat")
     args = ap.parse_args()
     results, times = matrix()
     text = markdown(results, times)
+    if args.real:
+        text += "\n" + real_records(args.real)
     pathlib.Path(args.out).write_text(text + "\n")
     print(text)
 

@@ -155,9 +155,8 @@ def _default_ts(excitation, ts, t1f):
 _run_jit = eqx.filter_jit(run)
 
 
-def stepper_grid(excitation, t1f, dt, method):
-    """(record step [s], number of steps, padded record table (1, n) [m/s²], scale)."""
-    dtype = jnp.result_type(excitation.u0)
+def stepper_grid(excitation, t1f, dt, method, dtype):
+    """(record step [s], padded record table (1, n) [m/s²], scale), in `dtype`."""
     if not excitation.forced:
         return free_vibration_dt(t1f, dt), jnp.zeros((1, 2), dtype), jnp.ones((), dtype)
     if is_traced(excitation.dt):
@@ -179,7 +178,8 @@ def _simulate_stepper(structure, excitation, t1f, ts, r, model, *, method, subst
     """One run on the batched stepper (a batch of one), outputs resampled to ts."""
     if t1f is None:
         raise ValueError(f"t1 must be a concrete number with method {method!r}")
-    dt_rec, table, scale = stepper_grid(excitation, t1f, dt, method)
+    dtype = jnp.result_type(structure.B)
+    dt_rec, table, scale = stepper_grid(excitation, t1f, dt, method, dtype)
     n_steps = int(math.ceil(t1f / dt_rec - 1e-9))
     cfg = StepperConfig(
         method=method, substeps=default_substeps(substeps, not excitation.forced, method),
@@ -187,7 +187,6 @@ def _simulate_stepper(structure, excitation, t1f, ts, r, model, *, method, subst
         max_pieces=model.default_max_pieces() if method == "rk4" else 4096,
         rtol=float(rtol), atol=float(atol),
     )
-    dtype = jnp.result_type(structure.B)
     u0, v0 = excitation.initial_state()
     out = _run_jit(model, structure, table, jnp.zeros((1,), jnp.int32),
                    jnp.asarray(dt_rec, dtype), jnp.asarray(scale, dtype),

@@ -370,7 +370,7 @@ def test_two_spring_2dof_batch_equals_single_runs_and_diffrax(column):
                                    method="dopri5", rtol=1e-9, atol=1e-11, progress=False)
     for i, x in enumerate(u0):
         one = simulate(column, FreeVibration(x), 1.0, model=model, method="dopri5",
-                       rtol=1e-9, atol=1e-11)
+                       rtol=1e-9, atol=1e-11, ts=np.asarray(batch.ts))
         np.testing.assert_allclose(batch.u[i], one.u, rtol=1e-9, atol=1e-12)
         ref = simulate(column, FreeVibration(x), 1.0, model=model, ts=one.ts)
         assert float(one.peak_u) == pytest.approx(float(ref.peak_u), rel=1e-6)

@@ -66,7 +66,7 @@ def tally_event(tally, flags, t, max_impacts, u_ot):
     times = tally.impact_times
     if times.shape[-1]:
         slot = jnp.minimum(tally.n_impacts, times.shape[-1] - 1)
-        times = jnp.where(flags.impact, times.at[slot].set(t), times)
+        times = jnp.where(flags.impact, times.at[slot].set(t.astype(times.dtype)), times)
     too_many = flags.impact & (n >= max_impacts)
     status = jnp.select([flags.overturned, too_many],
                         [STATUS["overturned"], STATUS["max_impacts"]], tally.status)
@@ -76,7 +76,7 @@ def tally_event(tally, flags, t, max_impacts, u_ot):
         peak_u=jnp.where(flags.overturned, u_ot, tally.peak_u),
         peak_uplift=tally.peak_uplift,
         status=status.astype(jnp.int32),
-        t_overturn=jnp.where(flags.overturned, t, tally.t_overturn),
+        t_overturn=jnp.where(flags.overturned, t, tally.t_overturn).astype(times.dtype),
         done=tally.done | flags.overturned | too_many | flags.rest,
         rest=tally.rest | flags.rest,
     )

@@ -122,10 +122,14 @@ class SDOF(AbstractRockingModel):
         return jnp.stack(vals)
 
     def jump(self, structure, y, mode, which, r, a_g):
+        # lambdas, not bound methods: lax.switch hashes its branches, and a bound method
+        # hashes the model, whose fields may be tracers (e.g. a traced Smooth width)
+        impact, overturn = (lambda *a: self._impact(*a)), (lambda *a: self._overturn(*a))
         if self.rigid:
-            branches = [self._impact, self._overturn, self._release, self._release]
+            release = lambda *a: self._release(*a)  # noqa: E731
+            branches = [impact, overturn, release, release]
         else:
-            branches = [self._impact, self._overturn, self._lift]
+            branches = [impact, overturn, lambda *a: self._lift(*a)]
         return jax.lax.switch(which, branches, structure, y, mode, r, a_g)
 
     def _impact(self, s, y, mode, r, a_g):
@@ -142,7 +146,7 @@ class SDOF(AbstractRockingModel):
         rest = ~mode.forced & ((0.5 * s.mass * v**2 <= 1e-14 * mode.E0) | settle)
         v = jnp.where(settle | rest, 0.0, v)
         new = SDOFMode(
-            sign=nonzero_sign(v, -mode.sign),
+            sign=-mode.sign,
             branch=jnp.asarray(self.rigid),
             lifted=jnp.asarray(self.rigid),
             resting=mode.resting | settle,

@@ -105,16 +105,12 @@ class TwoSpring2DOF(AbstractRockingModel):
         return jnp.stack([sl * q[0], sr * q[1], structure.u_overturn - jnp.abs(xe)])
 
     def jump(self, structure, y, mode, which, r, a_g):
-        return jax.lax.switch(
-            jnp.minimum(which, 2), [self._contact_left, self._contact_right, self._overturn],
-            structure, y, mode, r,
-        )
-
-    def _contact_left(self, s, y, mode, r):
-        return self._contact(s, y, mode, r, left=True)
-
-    def _contact_right(self, s, y, mode, r):
-        return self._contact(s, y, mode, r, left=False)
+        # lambdas, not bound methods: lax.switch hashes its branches, and a bound method
+        # hashes the model, whose damping may be a tracer
+        branches = [lambda *a: self._contact(*a, left=True),
+                    lambda *a: self._contact(*a, left=False),
+                    lambda *a: self._overturn(*a)]
+        return jax.lax.switch(jnp.minimum(which, 2), branches, structure, y, mode, r)
 
     def _contact(self, s, y, mode, r, *, left):
         """A corner reaches its spring: new contact flags, the pivot and its friction

@@ -63,6 +63,14 @@ class Member(eqx.Module):
     hprop: jnp.ndarray
 
 
+def per_member(f, s):
+    """`f(s, *args)` mapped over the members (`jax.vmap`): the structure's leaves that vary
+    per member (shape (N,)) are mapped and the shared ones (shape ()) are not, so that a
+    shared structure is not copied into every member; every other argument is mapped."""
+    axes = jax.tree_util.tree_map(lambda x: 0 if jnp.ndim(x) == 1 else None, s)
+    return lambda *args: jax.vmap(f, in_axes=(axes,) + (0,) * len(args))(s, *args)
+
+
 def tree_where(pred, a, b):
     """`jnp.where` leaf by leaf, `pred` broadcast against each leaf's leading axes."""
 
@@ -129,11 +137,17 @@ def fired(tr):
 
 
 def locate(model, cfg, s, y, mode, tau, h, a0, da, tr, fire):
-    """The earliest event of a member: (state at it, step to it [s], which condition)."""
-    roots = hermite_root(tr.g0, tr.dg0 * h, tr.g1, tr.dg1 * h)
-    roots = jnp.where(fire, roots, 2.0)
-    which = jnp.argmin(roots).astype(jnp.int32)
-    hp = jnp.minimum(roots[which], 1.0) * h
+    """The earliest event of a member: (state at it, step to it [s], which condition).
+
+    The fired conditions are ordered by the linear estimate of their roots; the earliest
+    is then located on its cubic Hermite interpolant (one root find, not one per
+    condition: the batch pays for every piece any member needs).
+    """
+    den = tr.g0 - tr.g1
+    lin = jnp.where(fire, tr.g0 / jnp.where(den != 0, den, 1.0), 2.0)
+    which = jnp.argmin(lin).astype(jnp.int32)
+    root = hermite_root(tr.g0[which], tr.dg0[which] * h, tr.g1[which], tr.dg1[which] * h)
+    hp = root * h
     ye, _ = rk_step(model, s, y, mode, tau, hp, a0, da, cfg)
     if cfg.method == "dopri5":
         # The cubic Hermite locates the event to O(h^4), below the 5th order of the
@@ -166,17 +180,17 @@ def _accept(cfg, st, tr, h, active):
 
 def piece(model, cfg, s, r, st, tau, L, t_start, a0, da):
     """Advance every active member by one piece: a trial step, then its first event."""
-    vm = jax.vmap
     active = ~st.tally.done & (tau < L)
     rest_len = L - tau
     h = _step_size(cfg, st, active, rest_len)
-    tr = vm(lambda *a: trial(model, cfg, *a))(s, st.y, st.mode, tau, h, a0, da)
+    tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da)
     accept, hprop = _accept(cfg, st, tr, h, active)
     fire = fired(tr) & (active & accept)[:, None]
     hit = jnp.any(fire, axis=-1)
 
     def with_events(_):
-        return vm(lambda *a: locate(model, cfg, *a))(s, st.y, st.mode, tau, h, a0, da, tr, fire)
+        return per_member(lambda *a: locate(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da,
+                                                               tr, fire)
 
     def without(_):
         return tr.y1, h, jnp.zeros(h.shape, jnp.int32)
@@ -196,16 +210,15 @@ def piece(model, cfg, s, r, st, tau, L, t_start, a0, da):
 
 def _advance(model, cfg, s, r, st, ye, hp, which, event, step, failed, t_ev, a_ev):
     """The bookkeeping of a piece: peaks, the jump at an event, the record."""
-    vm = jax.vmap
-    obs0 = vm(model.observe)(s, st.y, st.mode)
-    obs1 = vm(model.observe)(s, ye, st.mode)
-    u_ot = vm(model.u_overturn)(s)
+    obs0 = per_member(model.observe, s)(st.y, st.mode)
+    obs1 = per_member(model.observe, s)(ye, st.mode)
+    u_ot = per_member(lambda s_, _: model.u_overturn(s_), s)(hp)
     peak = piece_peak(obs0.u, obs0.v, obs1.u, obs1.v, hp)
-    up = vm(model.tracked_uplift)(s, ye, st.mode)
+    up = per_member(model.tracked_uplift, s)(ye, st.mode)
     tally = tree_where(step, tally_peak(st.tally, peak, up, u_ot), st.tally)
-    yj, mj, flags = vm(model.jump)(s, ye, st.mode, which, r, a_ev)
+    yj, mj, flags = per_member(model.jump, s)(ye, st.mode, which, r, a_ev)
     flags = jax.tree_util.tree_map(lambda f: f & event, flags)
-    tally = vm(lambda tl, fl, t, uo: tally_event(tl, fl, t, cfg.max_impacts, uo))(
+    tally = jax.vmap(lambda tl, fl, t, uo: tally_event(tl, fl, t, cfg.max_impacts, uo))(
         tally, flags, t_ev, u_ot)
     tally = tally_fail(tally, failed)
     return Member(
@@ -219,7 +232,7 @@ def _advance(model, cfg, s, r, st, ye, hp, which, event, step, failed, t_ev, a_e
 def _finish(model, cfg, s, st, tau, L, a0, da):
     """rk4: integrate what is left of the step without events (pieces ran out)."""
     todo = ~st.tally.done & (tau < L)
-    y1, _ = jax.vmap(lambda *a: rk_step(model, *a, cfg))(s, st.y, st.mode, tau, L - tau, a0, da)
+    y1, _ = per_member(lambda *a: rk_step(model, *a, cfg), s)(st.y, st.mode, tau, L - tau, a0, da)
     ok = jnp.all(jnp.isfinite(y1), axis=-1)
     st = eqx.tree_at(lambda m: (m.y, m.tally), st,
                      (jnp.where((todo & ok)[:, None], y1, st.y), tally_fail(st.tally, todo & ~ok)))
@@ -279,20 +292,20 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
     with `cfg.full`, u, v, theta, uplift on the grid (N, n_steps + 1) and impact_times
     (N, max_impacts).
     """
-    vm = jax.vmap
     N = jnp.shape(u0)[0]
-    s = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (N,)), structure.evaluated())
+    s = structure.evaluated()
     scale, r, rec = (jnp.broadcast_to(x, (N,)) for x in (scale, r, rec))
     first = _first_direction(table, rec, scale)
-    y, mode = vm(lambda *a: model.init(*a, cfg.forced))(s, u0, v0, first)
+    y, mode = per_member(lambda *a: model.init(*a, cfg.forced), s)(u0, v0, first)
     unstable = jnp.zeros((N,), bool)
     if cfg.method == "rk4":
         # RK4 is stable only for h * omega below about 2.8; beyond 2.5 the run would be
         # wrong, so it is refused up front (status solver_failure)
-        unstable = vm(model.frequency)(s) * (dt_rec / cfg.substeps) > 2.5
+        omega = per_member(lambda s_, _: model.frequency(s_), s)(u0)
+        unstable = omega * (dt_rec / cfg.substeps) > 2.5
     n_store = cfg.max_impacts if cfg.full else 0
-    tally = vm(lambda s_, y_, m_, f_: tally_start(model, s_, y_, m_, n_store, f_))(
-        s, y, mode, unstable)
+    tally = per_member(lambda s_, y_, m_, f_: tally_start(model, s_, y_, m_, n_store, f_), s)(
+        y, mode, unstable)
     st = Member(y=y, mode=mode, tally=tally, hprop=jnp.full((N,), jnp.inf, y.dtype))
     n_rec = table.shape[-1]
     sub = cfg.substeps
@@ -316,7 +329,7 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
                            a_lo + slope * ((j + 1) * L)), None
 
         st, _ = jax.lax.scan(sub_body, st, jnp.arange(sub))
-        return st, (vm(model.observe)(s, st.y, st.mode) if cfg.full else None)
+        return st, (per_member(model.observe, s)(st.y, st.mode) if cfg.full else None)
 
     final, outs = jax.lax.scan(outer, st, jnp.arange(cfg.n_steps))
     return _results(model, cfg, s, st, final, outs)
@@ -326,13 +339,13 @@ def _results(model, cfg, s, start, final, outs):
     t = final.tally
     res = dict(
         peak_u=t.peak_u,
-        peak_uplift=jax.vmap(model.peak_uplift)(s, t.peak_u, t.peak_uplift),
+        peak_uplift=per_member(model.peak_uplift, s)(t.peak_u, t.peak_uplift),
         n_impacts=t.n_impacts,
         status=t.status,
         t_overturn=t.t_overturn,
     )
     if cfg.full:
-        obs0 = jax.vmap(model.observe)(s, start.y, start.mode)
+        obs0 = per_member(model.observe, s)(start.y, start.mode)
         for name in ("u", "v", "theta", "uplift"):
             res[name] = jnp.concatenate([getattr(obs0, name)[:, None],
                                          getattr(outs, name).T], axis=1)

@@ -475,8 +475,11 @@ def _per_member(fn, structure, x, N):
 
 def _assemble(plan, res, structure, N, ts, summary_only):
     """A Summary, or a Response with a leading batch axis of length N."""
-    summary = Summary(**{k: jnp.asarray(res[k]) for k in
-                         ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn")})
+    peak_u = jnp.asarray(res["peak_u"])
+    peak_up = _per_member(lambda s, p: plan.model.peak_uplift(s, p, jnp.asarray(
+        res["peak_uplift"])), structure, peak_u, N)
+    summary = Summary(peak_uplift=peak_up, **{k: jnp.asarray(res[k]) for k in
+                                              ("peak_u", "n_impacts", "status", "t_overturn")})
     if summary_only:
         return summary
     out = {k: res[k] for k in ("u", "v", "theta", "uplift", "impact_times")}

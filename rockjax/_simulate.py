@@ -194,6 +194,7 @@ def _simulate_stepper(structure, excitation, t1f, ts, r, model, *, method, subst
                    jnp.reshape(jnp.asarray(v0, dtype), (1,)), jnp.asarray(r, dtype),
                    jnp.asarray(t1f, dtype), cfg)
     out = {k: v[0] for k, v in out.items()}
+    out["peak_uplift"] = model.peak_uplift(structure, out["peak_u"], out["peak_uplift"])
     grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
     ts_n = np.asarray(ts, float) if ts is not None else grid
     out = resample_outputs(grid, out, ts_n, lambda u: model.theta_uplift_of_u(structure, u))

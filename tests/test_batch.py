@@ -363,8 +363,8 @@ def test_rigid_block_rests_until_the_uplift_threshold(column, gm):
 
 def test_two_spring_2dof_batch_equals_single_runs_and_diffrax(column):
     """The 2-DOF body on the stepper: a batch equals its single runs, and dopri5 agrees
-    with the event-restart diffrax integrator (free rocking from three releases)."""
-    u0 = np.array([0.03, 0.06, -0.1])
+    with the event-restart diffrax integrator (free rocking from two releases)."""
+    u0 = np.array([0.06, -0.1])
     model = rockjax.TwoSpring2DOF(contact="continuous", damping=500.0)
     batch = rockjax.simulate_batch(column, FreeVibration(0.0), 1.0, u0=u0, model=model,
                                    method="dopri5", rtol=1e-9, atol=1e-11, progress=False)
@@ -378,12 +378,13 @@ def test_two_spring_2dof_batch_equals_single_runs_and_diffrax(column):
         np.testing.assert_allclose(one.uplift, ref.uplift, atol=2e-6 * abs(x))
 
 
+@pytest.mark.slow  # about 45 s, mostly compiling jacfwd of the 2-DOF Lagrange flow
 def test_two_spring_2dof_stepper_gradient(column):
     """d(peak)/d(k_f) of the 2-DOF body through lift-off and landing on the rk4 stepper:
     jacfwd against 5-point central differences (float64, fixed steps)."""
 
     def peak(k_f):
-        res = simulate(column.replace(k_f=k_f), FreeVibration(0.02), 0.6,
+        res = simulate(column.replace(k_f=k_f), FreeVibration(0.02), 0.25,
                        model=rockjax.TwoSpring2DOF(contact="continuous"), method="rk4",
                        dt=5e-4)
         return jnp.sum(res.u**2)

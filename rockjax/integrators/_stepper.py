@@ -288,7 +288,9 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
     `(n_records, n_samples + pad)` [m/s²], zero beyond each record's end; `dt_rec` [s] the
     record step (the output grid step for a free vibration) and `t1` [s] the end time.
 
-    Returns a dict: peak_u, peak_uplift, n_impacts, status, t_overturn (shape (N,)) and,
+    Returns a dict: peak_u, peak_uplift (the largest uplift seen at piece ends: the caller
+    applies `model.peak_uplift`, outside the compiled loop, so that summaries and full
+    results agree bit for bit), n_impacts, status, t_overturn (shape (N,)) and,
     with `cfg.full`, u, v, theta, uplift on the grid (N, n_steps + 1) and impact_times
     (N, max_impacts).
     """
@@ -339,7 +341,7 @@ def _results(model, cfg, s, start, final, outs):
     t = final.tally
     res = dict(
         peak_u=t.peak_u,
-        peak_uplift=per_member(model.peak_uplift, s)(t.peak_u, t.peak_uplift),
+        peak_uplift=t.peak_uplift,  # tracked; the caller applies model.peak_uplift
         n_impacts=t.n_impacts,
         status=t.status,
         t_overturn=t.t_overturn,

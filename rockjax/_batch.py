@@ -27,7 +27,7 @@ from ._checks import (
     check_scene,
     check_settings,
     default_substeps,
-    free_vibration_dt,
+    stepper_grid_step,
 )
 from ._excitation import FreeVibration, GroundMotion
 from ._response import Response
@@ -403,21 +403,12 @@ def _check_ts(ts, summary_only, t1f):
 def _grid(excitation, table, free, t1f, dt):
     """(step [s], the grid [s], the record table padded past t1): the record's samples,
     or dt for a free vibration."""
-    if free:
-        dt_rec = free_vibration_dt(t1f, dt)
-        table = np.zeros((1, 2))
-    else:
-        if dt is not None:
-            raise ValueError(
-                "dt applies to a free vibration; a ground motion is integrated on "
-                "its record's samples (use substeps to refine)"
-            )
-        dt_rec = float(np.asarray(excitation.dt))
-    n_steps = int(math.ceil(t1f / dt_rec - 1e-9))
+    dt_rec, n_steps = stepper_grid_step(excitation, t1f, dt)
     grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
-    if not free:
-        n_tab = max(table.shape[1], n_steps + 2)
-        table = np.concatenate([table, np.zeros((table.shape[0], n_tab - table.shape[1]))], 1)
+    if free:
+        return dt_rec, grid, np.zeros((1, 2))
+    n_tab = max(table.shape[1], n_steps + 2)
+    table = np.concatenate([table, np.zeros((table.shape[0], n_tab - table.shape[1]))], 1)
     return dt_rec, grid, table
 
 

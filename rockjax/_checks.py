@@ -5,6 +5,8 @@ Each raises `ValueError` naming the parameter at fault; nothing here integrates.
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -105,6 +107,21 @@ def default_substeps(substeps, free, method) -> int:
 def free_vibration_dt(t1f, dt) -> float:
     """The grid step [s] of a free vibration on the stepper: min(t1/4000, 10 ms)."""
     return min(t1f / 4000, 0.01) if dt is None else float(dt)
+
+
+def stepper_grid_step(excitation, t1f, dt):
+    """(grid step [s], number of steps to t1) of the stepper: the record's samples for a
+    ground motion (then `dt` must not be given), `free_vibration_dt` otherwise."""
+    if not excitation.forced:
+        step = free_vibration_dt(t1f, dt)
+    elif dt is not None:
+        raise ValueError(
+            "dt applies to a free vibration; a ground motion is integrated on "
+            "its record's samples (use substeps to refine)"
+        )
+    else:
+        step = float(np.asarray(excitation.dt))
+    return step, int(math.ceil(t1f / step - 1e-9))
 
 
 def strong(tree):

@@ -9,8 +9,6 @@ and `"dopri5"` run the batched stepper with events located inside its steps.
 
 from __future__ import annotations
 
-import math
-
 import diffrax as dfx
 import equinox as eqx
 import jax.numpy as jnp
@@ -24,8 +22,8 @@ from ._checks import (
     check_t1,
     check_ts,
     default_substeps,
-    free_vibration_dt,
     is_traced,
+    stepper_grid_step,
     strong,
 )
 from ._excitation import AbstractExcitation
@@ -156,21 +154,17 @@ _run_jit = eqx.filter_jit(run)
 
 
 def stepper_grid(excitation, t1f, dt, method, dtype):
-    """(record step [s], padded record table (1, n) [m/s²], scale), in `dtype`."""
-    if not excitation.forced:
-        return free_vibration_dt(t1f, dt), jnp.zeros((1, 2), dtype), jnp.ones((), dtype)
-    if is_traced(excitation.dt):
+    """(grid step [s], number of steps, padded record table (1, n) [m/s²], scale), in
+    `dtype`."""
+    if excitation.forced and is_traced(excitation.dt):
         raise ValueError(f"the record's dt must be concrete with method {method!r}")
-    if dt is not None:
-        raise ValueError(
-            "dt applies to a free vibration; a ground motion is integrated "
-            "on its record's samples (use substeps to refine)"
-        )
-    dt_rec = float(np.asarray(excitation.dt))
-    n_steps = int(math.ceil(t1f / dt_rec - 1e-9))
+    dt_rec, n_steps = stepper_grid_step(excitation, t1f, dt)
+    if not excitation.forced:
+        return dt_rec, n_steps, jnp.zeros((1, 2), dtype), jnp.ones((), dtype)
     acc = jnp.asarray(excitation.accel, dtype)
     pad = max(0, n_steps + 2 - acc.shape[-1])
-    return dt_rec, jnp.concatenate([acc, jnp.zeros((pad,), dtype)])[None], excitation.scale
+    table = jnp.concatenate([acc, jnp.zeros((pad,), dtype)])[None]
+    return dt_rec, n_steps, table, excitation.scale
 
 
 def _simulate_stepper(structure, excitation, t1f, ts, r, model, *, method, substeps, dt,
@@ -179,8 +173,7 @@ def _simulate_stepper(structure, excitation, t1f, ts, r, model, *, method, subst
     if t1f is None:
         raise ValueError(f"t1 must be a concrete number with method {method!r}")
     dtype = jnp.result_type(structure.B)
-    dt_rec, table, scale = stepper_grid(excitation, t1f, dt, method, dtype)
-    n_steps = int(math.ceil(t1f / dt_rec - 1e-9))
+    dt_rec, n_steps, table, scale = stepper_grid(excitation, t1f, dt, method, dtype)
     cfg = StepperConfig(
         method=method, substeps=default_substeps(substeps, not excitation.forced, method),
         n_steps=n_steps, forced=excitation.forced, full=True, max_impacts=max_impacts,

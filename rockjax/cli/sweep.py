@@ -110,9 +110,10 @@ def _add_run_arguments(w):
     )
     w.add_argument(
         "--model",
-        choices=["simplified", "exact", "smooth", "housner"],
+        choices=["simplified", "exact", "smooth", "housner", "two_spring_2dof"],
         default="simplified",
-        help="restoring-force model (default simplified)",
+        help="model of the fidelity ladder (default simplified; two_spring_2dof: the 2-DOF "
+        "rigid body on its springs, batched like the others)",
     )
     w.add_argument(
         "--method",

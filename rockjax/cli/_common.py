@@ -23,6 +23,25 @@ class CLIError(Exception):
     """A user-facing error: printed as one line, exit code 2."""
 
 
+def add_model_arguments(parser, model_help):
+    """--model (every model of the ladder, from `rockjax.MODELS`), --r and --impact."""
+    parser.add_argument(
+        "--model", choices=list(rockjax.MODELS), default="simplified", help=model_help
+    )
+    parser.add_argument(
+        "--r",
+        type=_finite_float("--r"),
+        metavar="R",
+        help="coefficient of restitution in [0, 1] (default: Eq 3)",
+    )
+    parser.add_argument(
+        "--impact",
+        choices=list(rockjax.IMPACT_RULES),
+        default="paper",
+        help="impact rule (default paper: every crossing of u = 0)",
+    )
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, no usage dump
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")

@@ -18,6 +18,7 @@ from ._common import (
     _load_structure,
     _positive_float,
     _write_csv,
+    add_model_arguments,
     CLIError,
 )
 
@@ -62,33 +63,12 @@ def add_parser(subparsers):
         metavar="T",
         help="end time [s] (default: 4 s, or the record's length)",
     )
-    _add_model_arguments(m)
+    add_model_arguments(m, "model of the fidelity ladder (default simplified)")
     m.add_argument("--out", metavar="FILE.csv", help="write t, u, v, theta, uplift as CSV")
     m.add_argument("--plot", metavar="FILE.png", help="write a Fig 9/10-style plot")
     m.add_argument("--json", action="store_true", help="print a JSON summary and nothing else")
     m.set_defaults(func=run)
     return m
-
-
-def _add_model_arguments(m):
-    m.add_argument(
-        "--model",
-        choices=["simplified", "exact", "smooth", "housner", "two_spring_2dof"],
-        default="simplified",
-        help="restoring-force model (default simplified)",
-    )
-    m.add_argument(
-        "--r",
-        type=_finite_float("--r"),
-        metavar="R",
-        help="coefficient of restitution in [0, 1] (default: Eq 3)",
-    )
-    m.add_argument(
-        "--impact",
-        choices=["paper", "after_uplift"],
-        default="paper",
-        help="impact rule (default paper: every crossing of u = 0)",
-    )
 
 
 def _build_excitation(args):

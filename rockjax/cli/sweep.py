@@ -24,12 +24,12 @@ from ._common import (
     _check_png,
     _check_r,
     _check_t1_steps,
-    _finite_float,
     _first_line,
     _load_structure,
     _positive_float,
     _positive_int,
     _scales,
+    add_model_arguments,
     CLIError,
 )
 
@@ -108,11 +108,9 @@ def _add_run_arguments(w):
         metavar="T",
         help="end time [s] (default: the longest record's length)",
     )
-    w.add_argument(
-        "--model",
-        choices=["simplified", "exact", "smooth", "housner", "two_spring_2dof"],
-        default="simplified",
-        help="model of the fidelity ladder (default simplified; two_spring_2dof: the 2-DOF "
+    add_model_arguments(
+        w,
+        "model of the fidelity ladder (default simplified; two_spring_2dof: the 2-DOF "
         "rigid body on its springs, batched like the others)",
     )
     w.add_argument(
@@ -128,18 +126,6 @@ def _add_run_arguments(w):
         metavar="N",
         help="RK4 steps per record interval (default 4: peak |u| within about 2e-5 of a "
         "tight reference on El Centro scaled 0.1-2; 2 is twice as fast, within 4e-4)",
-    )
-    w.add_argument(
-        "--r",
-        type=_finite_float("--r"),
-        metavar="R",
-        help="coefficient of restitution in [0, 1] (default: Eq 3)",
-    )
-    w.add_argument(
-        "--impact",
-        choices=["paper", "after_uplift"],
-        default="paper",
-        help="impact rule (default paper: every crossing of u = 0)",
     )
 
 

@@ -30,7 +30,11 @@ from ._pushover import (  # noqa: E402
     pushover as pushover,
     PushoverResult as PushoverResult,
 )
-from ._records import read_record as read_record, Record as Record  # noqa: E402
+from ._records import (  # noqa: E402
+    G_STANDARD as G_STANDARD,
+    read_record as read_record,
+    Record as Record,
+)
 from ._response import Response as Response, STATUS as STATUS  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
 from ._status import Status as Status  # noqa: E402

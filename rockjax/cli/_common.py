@@ -165,7 +165,8 @@ def _scales(text):
                 f"scale factors must be positive and finite, got {text!r}"
             )
     if ":" in t:
-        return [float(x) for x in np.linspace(values[0], values[1], n)]
+        # 12 significant digits: 0.8, not linspace's 0.7999999999999999
+        return [float(f"{x:.12g}") for x in np.linspace(values[0], values[1], n)]
     return values
 
 
@@ -230,6 +231,46 @@ _UNITS = {
     "u_overturn": "m",
     "restitution": "-",
 }
+
+
+# ------------------------------------------------------------------ what produced a number
+def model_info(args):
+    """The model, impact rule and restitution behind a CLI result (for text and JSON)."""
+    return {"model": args.model, "impact": args.impact, "r": "Eq 3" if args.r is None else args.r}
+
+
+def model_line(info):
+    """`model_info` as one line of text."""
+    r = info["r"] if isinstance(info["r"], str) else f"{info['r']:g}"
+    return f"{info['model']} model, impact rule {info['impact']}, r {r}"
+
+
+def record_info(record, scale=1.0):
+    """What was read from a record: file, units (and where they came from), dt, points,
+    duration, PGA and the scale applied, as plain Python (SI units, PGA also in g)."""
+    pga = float(record.pga)
+    return {
+        "file": str(record.source),
+        "units_in_file": record.units_in_file,
+        "units_from": getattr(record, "units_source", None),
+        "dt_s": float(record.dt),
+        "n_points": int(record.npts),
+        "duration_s": float(record.dt * (record.npts - 1)),
+        "pga_m_s2": pga,
+        "pga_g": pga / rockjax.G_STANDARD,
+        "scale": float(scale),
+        "scaled_pga_g": float(scale) * pga / rockjax.G_STANDARD,
+    }
+
+
+def record_line(info):
+    """`record_info` as one line of text."""
+    src = f" ({info['units_from']})" if info.get("units_from") else ""
+    return (
+        f"{pathlib.Path(info['file']).name}: units {info['units_in_file']}{src}, "
+        f"dt {info['dt_s']:g} s, {info['n_points']} points, {info['duration_s']:g} s, "
+        f"PGA {info['pga_g']:.4g} g x scale {info['scale']:g} = {info['scaled_pga_g']:.4g} g"
+    )
 
 
 def _derived_table(derived):

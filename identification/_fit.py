@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 import warnings
 
@@ -188,7 +189,7 @@ def fit_decay(
       refine k_f, which avoids the local minima of oscillatory fits.
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
     - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
-      if the fit takes more than about 3 s).
+      if the fit takes more than about 3 s and stderr is a terminal).
 
     **Returns:** a `FitResult`. Warns `IdentifiabilityWarning` when the trace cannot pin a
     parameter down; never raises for a poor fit (see `converged`).
@@ -557,7 +558,8 @@ def _make_run_chunk(misfit: _Misfit, opt):
 
 
 class _Progress:
-    """A tqdm bar: shown if `progress` is True, or (None) once the fit has taken 3 s."""
+    """A tqdm bar: shown if `progress` is True, or (None) once the fit has taken 3 s and
+    stderr is a terminal (no carriage returns in logs)."""
 
     def __init__(self, progress, total: int):
         self.progress = progress
@@ -567,7 +569,8 @@ class _Progress:
 
     def update(self, n_iter: int, frac: float, best_now: np.ndarray):
         if self.progress is not False and self.bar is None and (
-            self.progress or time.perf_counter() - self.t_start > 3.0
+            self.progress
+            or (sys.stderr.isatty() and time.perf_counter() - self.t_start > 3.0)
         ):
             from tqdm.auto import tqdm
 

@@ -248,7 +248,8 @@ def _split(members, structure, N, dtype):
 def _run_chunks(plan, N, names, values, shared, table, ts_d, dtype, progress):
     """Every chunk through its compiled kernel (the last padded), with a progress bar."""
     n_chunks = math.ceil(N / plan.chunk)
-    bar = _progress(N, progress if progress is not None else n_chunks > 1, f"{plan.method} batch")
+    auto = n_chunks > 1 and sys.stderr.isatty()  # no carriage returns in logs
+    bar = _progress(N, progress if progress is not None else auto, f"{plan.method} batch")
     parts = []
     try:
         for i in range(n_chunks):
@@ -336,7 +337,8 @@ def simulate_batch(
     - `devices`: how many local devices to split each chunk over (default: all of
       `jax.local_devices()`; on a CPU set
       `XLA_FLAGS=--xla_force_host_platform_device_count=<cores>` before importing jax).
-    - `progress`: show a tqdm bar (default: when there is more than one chunk).
+    - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and
+      stderr is a terminal, so logs get no carriage returns).
 
     **Returns:** a `Summary`, or a `Response` whose arrays have a leading batch axis of
     length N (`impact_times` has shape (N, max_impacts)). Failures come back per member as

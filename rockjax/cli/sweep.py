@@ -257,7 +257,7 @@ def _run_batches(args, sweep, gm):
             method=args.method,
             substeps=args.substeps,
             summary_only=True,
-            progress=not args.json,
+            progress=False if args.json else None,
         )
         sweep.results.append({k: np.asarray(getattr(out, k)).reshape(n_s, n_r) for k in _FIELDS})
     sweep.wall = time.perf_counter() - t0

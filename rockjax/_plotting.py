@@ -84,34 +84,36 @@ def plot_pushover(structure, curves=None, *, ax=None, title=None):
     return fig
 
 
-def plot_response(structure, response, *, ground_motion=None, title=None, label=None,
-                  overlay=()):
-    """Fig 9/10-style time histories: displacement (impacts marked, ±u_crit and ±u_overturn
-    dashed) and uplift, with the ground acceleration on top when given.
-
-    `overlay` is a sequence of `(label, Response)` drawn over the main one. Returns the Figure.
-    """
-    s = structure
-    res = response
-    panels = 3 if ground_motion is not None else 2
-    fig = new_figure(figsize=(9, 2.4 * panels + 0.6))
-    axes = fig.subplots(panels, 1, sharex=True)
+def _until_overturn(res):
+    """(ts, mask): the output times and the samples up to t_overturn (all if it did not)."""
     ts = np.asarray(res.ts)
-    k = 0
-    if ground_motion is not None:
-        ag = np.asarray(ground_motion.ground_acceleration(res.ts))
-        axes[0].plot(ts, ag / 9.81, color="0.3", lw=0.8)
-        axes[0].set_ylabel("ground accel. [g]")
-        k = 1
-        axes[0].grid(alpha=0.3)
-    ax_u, ax_up = axes[k], axes[k + 1]
-    ax_u.plot(ts, 1e3 * np.asarray(res.u), color="C0", lw=1.2, label=label)
-    ax_up.plot(ts, 1e3 * np.asarray(res.uplift), color="C0", lw=1.2, label=label)
+    t_ot = float(res.t_overturn)
+    return ts, (ts <= t_ot) if np.isfinite(t_ot) else np.ones(ts.shape, bool)
+
+
+def _ground_panel(ax, ground_motion, ts):
+    ag = np.asarray(ground_motion.ground_acceleration(ts))
+    ax.plot(ts, ag / 9.80665, color="0.3", lw=0.8)
+    ax.set_ylabel("ground accel. [g]")
+    ax.grid(alpha=0.3)
+
+
+def _history_panels(ax_u, ax_up, res, label, overlay):
+    """u and uplift [mm] of the main response and the overlays, each cut at its
+    t_overturn (the arrays hold the state at overturning after it)."""
+    ts, keep = _until_overturn(res)
+    ax_u.plot(ts[keep], 1e3 * np.asarray(res.u)[keep], color="C0", lw=1.2, label=label)
+    ax_up.plot(ts[keep], 1e3 * np.asarray(res.uplift)[keep], color="C0", lw=1.2, label=label)
     for i, (lab, other) in enumerate(overlay):
-        ax_u.plot(np.asarray(other.ts), 1e3 * np.asarray(other.u), lw=1.0, ls="--",
+        t_o, k_o = _until_overturn(other)
+        ax_u.plot(t_o[k_o], 1e3 * np.asarray(other.u)[k_o], lw=1.0, ls="--",
                   color=f"C{i + 1}", label=lab)
-        ax_up.plot(np.asarray(other.ts), 1e3 * np.asarray(other.uplift), lw=1.0, ls="--",
+        ax_up.plot(t_o[k_o], 1e3 * np.asarray(other.uplift)[k_o], lw=1.0, ls="--",
                    color=f"C{i + 1}", label=lab)
+
+
+def _marks(ax_u, s, res):
+    """±u_crit dotted, impacts, and for an overturned run ±u_overturn and t_overturn."""
     uc = 1e3 * float(s.u_crit)
     for y in (uc, -uc):
         ax_u.axhline(y, color="k", lw=0.5, ls=":")
@@ -119,12 +121,40 @@ def plot_response(structure, response, *, ground_motion=None, title=None, label=
     if imp.size and imp.size <= 60:
         ax_u.plot(imp, np.zeros_like(imp), "k|", ms=8, label="impacts")
     ax_u.axhline(0.0, color="k", lw=0.5)
+    t_ot = float(res.t_overturn)
+    if np.isfinite(t_ot):
+        uo = 1e3 * float(s.u_overturn)
+        for y in (uo, -uo):
+            ax_u.axhline(y, color="C3", lw=0.6, ls="--")
+        ax_u.axvline(t_ot, color="C3", lw=0.8, label=f"overturned at {t_ot:.3g} s")
+
+
+def plot_response(structure, response, *, ground_motion=None, title=None, label=None,
+                  overlay=()):
+    """Fig 9/10-style time histories: displacement (impacts marked, ±u_crit dotted) and
+    uplift, with the ground acceleration on top when given.
+
+    After overturning the curves stop at `t_overturn` (marked, with ±u_overturn dashed).
+    `overlay` is a sequence of `(label, Response)` drawn over the main one. Returns the Figure.
+    """
+    s = structure
+    res = response
+    panels = 3 if ground_motion is not None else 2
+    fig = new_figure(figsize=(9, 2.4 * panels + 0.6))
+    axes = fig.subplots(panels, 1, sharex=True)
+    k = 0
+    if ground_motion is not None:
+        _ground_panel(axes[0], ground_motion, np.asarray(res.ts))
+        k = 1
+    ax_u, ax_up = axes[k], axes[k + 1]
+    _history_panels(ax_u, ax_up, res, label, overlay)
+    _marks(ax_u, s, res)
     ax_u.set_ylabel("displacement u [mm]")
     ax_up.set_ylabel("uplift [mm]")
     ax_up.set_xlabel("time [s]")
     for ax in (ax_u, ax_up):
         ax.grid(alpha=0.3)
-    if label or overlay:
+    if label or overlay or np.isfinite(float(res.t_overturn)):
         ax_u.legend(fontsize=8, loc="upper right")
     status = _status_text(res.status)
     summary = (f"peak |u| = {1e3 * float(res.peak_u):.1f} mm, peak uplift = "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -35,48 +37,123 @@ class Response(eqx.Module):
     t_overturn: jnp.ndarray
 
     @property
-    def status_name(self) -> str:
-        """The status as text (for an unbatched response)."""
+    def batch_shape(self) -> tuple:
+        """The batch shape: `()` for one run of `simulate`, `(N,)` for `simulate_batch`."""
+        return tuple(np.shape(self.status))
+
+    def member(self, index) -> "Response":
+        """The response of one member of a batch (an int or a tuple of ints)."""
+        if not self.batch_shape:
+            raise ValueError("member: this Response is not batched")
+        shared_ts = np.ndim(self.ts) < np.ndim(self.u)  # one time grid for every member
+        return dataclasses.replace(
+            self,
+            **{
+                f.name: np.asarray(getattr(self, f.name))
+                if f.name == "ts" and shared_ts
+                else np.asarray(getattr(self, f.name))[index]
+                for f in dataclasses.fields(self)
+            },
+        )
+
+    def _each(self, fn):
+        """`fn(member)` for one run, or an array of them (dtype object) for a batch."""
+        shape = self.batch_shape
+        if not shape:
+            return fn(self)
+        out = np.empty(shape, dtype=object)
+        for idx in np.ndindex(*shape):
+            out[idx] = fn(self.member(idx))
+        return out
+
+    @property
+    def status_name(self) -> str | np.ndarray:
+        """The status as text (an array of them for a batch)."""
+        if self.batch_shape:
+            return np.vectorize(status_name, otypes=[str])(np.asarray(self.status))
         return status_name(self.status)
 
     @property
-    def message(self) -> str:
-        """A one-line explanation of the status, with the remedy for a failure (for an
-        unbatched response)."""
-        name = self.status_name
-        n = int(self.n_impacts)
-        if name == "completed":
-            return f"completed: the run reached its end time or came to rest ({n} impacts)"
-        if name == "overturned":
-            return (
-                f"overturned: |u| reached u_overturn at t = {float(self.t_overturn):.6g} s "
-                f"(after {n} impacts)"
-            )
-        if name == "max_impacts":
-            budget = int(np.shape(self.impact_times)[-1])
-            why = (
-                f"the run reached the bound of {budget} impacts"
-                if n >= budget
-                else f"the run ran out of event segments after {n} impacts (the segment "
-                f"budget grows with max_impacts = {budget}; a very stiff k_f causes this, "
-                "where method=\"dopri5\" is the better remedy)"
-            )
-            return f"max_impacts: {why}; raise max_impacts to continue"
-        return f"solver_failure: {status_message(self.status)}"
+    def message(self) -> str | np.ndarray:
+        """A one-line explanation of the status, with the remedy for a failure (an array of
+        them for a batch)."""
+        return self._each(_message)
 
     @property
     def impacts(self) -> np.ndarray:
-        """The impact times [s] without padding (for an unbatched response)."""
-        return np.asarray(self.impact_times)[: int(self.n_impacts)]
+        """The impact times [s] without the `inf` padding (`n_impacts` is their number); for
+        a batch, an object array holding one such array per member."""
+        return self._each(lambda m: np.asarray(m.impact_times)[: int(m.n_impacts)])
 
-    def summary(self) -> dict:
-        """peak_u, peak_uplift, n_impacts, impact_times, status, t_overturn as plain Python."""
-        t_ot = float(self.t_overturn)
-        return {
-            "peak_u": float(self.peak_u),
-            "peak_uplift": float(self.peak_uplift),
-            "n_impacts": int(self.n_impacts),
-            "impact_times": [float(t) for t in self.impacts],
-            "status": self.status_name,
-            "t_overturn": t_ot if np.isfinite(t_ot) else None,
-        }
+    def summary(self) -> dict | list:
+        """The results as plain Python (SI units: m, s), for JSON: `peak_u` [m] and `t_peak`
+        [s] (when |u| peaked, from the cubic Hermite interpolant of u, v on `ts`),
+        `peak_uplift` [m], `n_impacts`, `impact_times` [s], `status`, `t_overturn` [s] (None
+        if it did not overturn), `t_end` [s] (the last output time) and `residual_u` [m]
+        (u at `t_end`; None after overturning). A batch gives a (nested) list of them."""
+        if self.batch_shape:
+            return self._each(_summary).tolist()
+        return _summary(self)
+
+
+def _message(res) -> str:
+    name = status_name(res.status)
+    n = int(res.n_impacts)
+    if name == "completed":
+        return f"completed: the run reached its end time or came to rest ({n} impacts)"
+    if name == "overturned":
+        return (
+            f"overturned: |u| reached u_overturn at t = {float(res.t_overturn):.6g} s "
+            f"(after {n} impacts)"
+        )
+    if name == "max_impacts":
+        budget = int(np.shape(res.impact_times)[-1])
+        why = (
+            f"the run reached the bound of {budget} impacts"
+            if n >= budget
+            else f"the run ran out of event segments after {n} impacts (the segment "
+            f"budget grows with max_impacts = {budget}; a very stiff k_f causes this, "
+            "where method=\"dopri5\" is the better remedy)"
+        )
+        return f"max_impacts: {why}; raise max_impacts to continue"
+    return f"solver_failure: {status_message(res.status)}"
+
+
+def peak_time(ts, u, v) -> float:
+    """When |u| peaks [s]: the grid sample of largest |u|, refined on the cubic Hermite
+    interpolant of (u, v) over its two neighbouring intervals."""
+    ts, u, v = (np.asarray(x, dtype=np.float64) for x in (ts, u, v))
+    i = int(np.argmax(np.abs(u)))
+    best_t, best = float(ts[i]), abs(float(u[i]))
+    for j in (i - 1, i):
+        if j < 0 or j + 1 >= ts.size or not ts[j + 1] > ts[j]:
+            continue
+        h = ts[j + 1] - ts[j]
+        x = np.linspace(0.0, 1.0, 257)
+        h00, h10 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x
+        h01, h11 = -2 * x**3 + 3 * x**2, x**3 - x**2
+        p = h00 * u[j] + h10 * h * v[j] + h01 * u[j + 1] + h11 * h * v[j + 1]
+        k = int(np.argmax(np.abs(p)))
+        if abs(p[k]) > best:
+            best_t, best = float(ts[j] + x[k] * h), abs(float(p[k]))
+    return best_t
+
+
+def _summary(res) -> dict:
+    t_ot = float(res.t_overturn)
+    overturned = bool(np.isfinite(t_ot))
+    ts = np.asarray(res.ts)
+    keep = ts <= t_ot if overturned else np.ones(ts.shape, bool)
+    t_peak = t_ot if overturned else peak_time(ts[keep], np.asarray(res.u)[keep],
+                                                 np.asarray(res.v)[keep])
+    return {
+        "peak_u": float(res.peak_u),
+        "t_peak": t_peak,
+        "peak_uplift": float(res.peak_uplift),
+        "n_impacts": int(res.n_impacts),
+        "impact_times": [float(t) for t in np.asarray(res.impact_times)[: int(res.n_impacts)]],
+        "status": status_name(res.status),
+        "t_overturn": t_ot if overturned else None,
+        "t_end": float(ts[-1]),
+        "residual_u": None if overturned else float(np.asarray(res.u)[-1]),
+    }

@@ -26,7 +26,8 @@ from ._checks import (
     stepper_grid_step,
     strong,
 )
-from ._excitation import AbstractExcitation
+from ._excitation import AbstractExcitation, GroundMotion
+from ._records import Record
 from ._response import Response
 from .integrators import resample, RestartConfig, run, solve, StepperConfig
 from .models import get_model, IMPACT_RULES
@@ -62,8 +63,9 @@ def simulate(
     **Arguments:**
 
     - `structure`: a `RockingStructure` (SI units).
-    - `excitation`: `FreeVibration(u0 [m], v0 [m/s])` or `GroundMotion(dt [s], accel [m/s²],
-      scale)`.
+    - `excitation`: `FreeVibration(u0 [m], v0 [m/s])`, `GroundMotion(dt [s], accel [m/s²],
+      scale)`, or a `Record` (e.g. `rockjax.datasets.el_centro()`; scale 1, use
+      `GroundMotion.from_record(record, scale=...)` to scale it).
     - `t1`: end time [s], > 0.
     - `ts`: output times [s], increasing, within [0, t1]. Default: the record's samples for a
       ground motion, else 1001 points.
@@ -108,6 +110,8 @@ def simulate(
     res.n_impacts, res.peak_u
     ```
     """
+    if isinstance(excitation, Record):  # e.g. rockjax.datasets.el_centro(): scale 1
+        excitation = GroundMotion.from_record(excitation)
     check_scene(structure, excitation)
     if adjoint not in ("reverse", "forward"):
         raise ValueError(f"adjoint must be 'reverse' or 'forward', got {adjoint!r}")

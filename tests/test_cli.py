@@ -43,7 +43,7 @@ def test_pushover_table_plot_and_csv(tmp_path, capsys):
     assert "u_crit" in text and "restitution" in text
     assert png.stat().st_size > 10_000
     lines = csv.read_text().splitlines()
-    assert lines[0] == "u,simplified,exact,numerical,theta,uplift" and len(lines) == 202
+    assert lines[0] == "u_m,simplified_N,exact_N,numerical_N,theta_rad,uplift_m" and len(lines) == 202
 
 
 def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
@@ -54,8 +54,11 @@ def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
         assert (tmp_path / "demo" / name).stat().st_size > 10_000
     out = capsys.readouterr().out
     assert "P_crit" in out and "El Centro" in out and "SYNTHETIC" not in out
-    row = next(ln for ln in out.splitlines() if ln.startswith("1940 El Centro NS"))
+    assert "IELC180.AT2: units g (file header), dt 0.01 s, 4000 points" in out
+    row = next(ln for ln in out.splitlines() if ln.startswith("earthquake, simplified SDOF"))
     assert row.split()[-2] == "243" and row.split()[-1] == "completed"
+    rigid = next(ln for ln in out.splitlines() if ln.startswith("earthquake, 2-DOF body"))
+    assert float(rigid.split()[-4]) < 0.5 * float(row.split()[-4])  # the fidelity finding
 
 
 def test_demo_falls_back_to_synthetic(tmp_path, capsys, monkeypatch):
@@ -75,8 +78,12 @@ def test_demo_falls_back_to_synthetic(tmp_path, capsys, monkeypatch):
 def test_simulate_free_vibration_json(capsys):
     assert main(["simulate", "--u0", "0.1", "--t1", "4", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"peak_u", "peak_uplift", "n_impacts", "impact_times", "status",
-                        "t_overturn"}
+    assert {"peak_u", "t_peak", "peak_theta", "peak_theta_over_alpha_c", "peak_uplift",
+            "n_impacts", "impact_times", "status", "message", "t_overturn", "t_end",
+            "residual_u", "model", "impact", "r", "excitation", "units"} <= set(out)
+    assert out["model"] == "simplified" and out["impact"] == "paper" and out["r_from"] == "Eq 3"
+    assert out["excitation"] == {"type": "free_vibration", "u0": 0.1, "v0": 0.0}
+    assert out["units"]["peak_u"] == "m" and out["units"]["t_peak"] == "s"
     assert out["status"] == "completed" and out["t_overturn"] is None
     assert out["peak_u"] == pytest.approx(0.1) and out["n_impacts"] == len(out["impact_times"])
     assert out["n_impacts"] == 17
@@ -91,14 +98,16 @@ def test_simulate_record_csv_plot(tmp_path, capsys, ground_motions_dir):
     text = capsys.readouterr().out
     assert "status        completed" in text
     lines = csv.read_text().splitlines()
-    assert lines[0] == "t,u,v,theta,uplift" and len(lines) == 1002  # 0.01 s grid, 10 s
+    assert lines[0] == "t_s,u_m,v_m_s,theta_rad,uplift_m" and len(lines) == 1002  # 0.01 s grid, 10 s
     assert png.stat().st_size > 10_000
 
 
 def test_simulate_overturns_json(capsys):
-    assert main(["simulate", "--u0", "0.5", "--json"]) == 0
+    assert main(["simulate", "--u0", "0.37", "--v0", "0.5", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["status"] == "overturned" and out["t_overturn"] == 0.0
+    assert out["status"] == "overturned" and 0.0 < out["t_overturn"] < 0.1
+    assert out["t_peak"] == out["t_overturn"] and out["residual_u"] is None
+    assert out["peak_theta_over_alpha_c"] == pytest.approx(1.0, abs=1e-4)
 
 
 SOFT = "[structure]\nm_e=1.0\nm_b=1.0\nH_e=1.0\nH_b=0.1\nB=0.3\nI_eg=0.0\nI_bg=0.0\nk_f=10.0\n"

@@ -16,12 +16,28 @@ from ._common import _first_line, _Parser, CLIError, EXIT_USAGE
 COMMANDS = (demo, pushover, simulate, fit, sweep)
 
 
+def _version():
+    """rockjax's version, with the versions of the JAX stack it runs on."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    import rockjax
+
+    stack = []
+    for pkg in ("jax", "diffrax", "equinox", "optax"):
+        try:
+            stack.append(f"{pkg} {version(pkg)}")
+        except PackageNotFoundError:  # pragma: no cover - a broken environment
+            stack.append(f"{pkg} ?")
+    return f"rockjax {rockjax.__version__} ({', '.join(stack)})"
+
+
 def build_parser():
     p = _Parser(
         prog="rockjax",
         description="Differentiable simulator of rigid structures rocking on a two-spring "
         "foundation (SI units throughout).",
     )
+    p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for command in COMMANDS:
         command.add_parser(sub)

@@ -208,9 +208,12 @@ def _check_out_dir(option, path):
         raise CLIError(f"{option}: directory not found: {p.parent}")
 
 
-def _write_csv(path, columns, names):
-    data = np.column_stack([np.asarray(columns[k]) for k in names])
-    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+def _write_csv(path, columns, units):
+    """Columns as CSV; `units` maps each column name to its unit, written into the header
+    as a suffix (``u_m``, ``theta_rad``)."""
+    data = np.column_stack([np.asarray(columns[k]) for k in units])
+    header = ",".join(f"{k}_{u}" for k, u in units.items())
+    np.savetxt(path, data, delimiter=",", header=header, comments="", fmt="%.10g")
 
 
 _UNITS = {

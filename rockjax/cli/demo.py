@@ -96,7 +96,7 @@ def _demo_earthquake(s, out):
     overlaid (the fidelity finding). Returns (plot path, SDOF response, 2-DOF response,
     motion's name)."""
     rec, name = _demo_ground_motion()
-    print(f"  record read: {record_line(record_info(rec))}")
+    print(f"  earthquake: {name}; read {record_line(record_info(rec))}")
     gm = rockjax.GroundMotion.from_record(rec)
     quake = rockjax.simulate(s, gm, float(gm.duration))
     quake_2dof = rockjax.simulate(s, gm, float(gm.duration), model="two_spring_2dof")

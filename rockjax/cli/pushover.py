@@ -8,16 +8,21 @@ import math
 from rockjax import _plotting
 
 from ._common import (
+    _check_out_dir,
     _check_png,
     _derived_table,
     _load_structure,
     _points,
     _positive_float,
+    _UNITS,
     _write_csv,
     CLIError,
 )
 
 _CURVES = ("u", "simplified", "exact", "numerical")
+#: the --out CSV columns and their units (header u_m,simplified_N,...,uplift_m)
+CSV_COLUMNS = {"u": "m", "simplified": "N", "exact": "N", "numerical": "N", "theta": "rad",
+               "uplift": "m"}
 
 
 def add_parser(subparsers):
@@ -37,7 +42,12 @@ def add_parser(subparsers):
     )
     q.add_argument("--points", type=_points, default=201, help="number of points (default 201)")
     q.add_argument("--plot", metavar="FILE.png", help="write a Fig 8-style plot")
-    q.add_argument("--out", metavar="FILE.csv", help="write the curves as CSV")
+    q.add_argument(
+        "--out",
+        metavar="FILE.csv",
+        help="write the curves as CSV, header u_m,simplified_N,exact_N,numerical_N,theta_rad,"
+        "uplift_m",
+    )
     q.add_argument("--json", action="store_true", help="print one JSON object and nothing else")
     q.set_defaults(func=run)
     return q
@@ -76,18 +86,22 @@ def run(args):
     s = _load_structure(args.structure)
     umax = _umax(s, args.umax)
     _check_png(args.plot)
+    _check_out_dir("--out", args.out)
+    _check_out_dir("--plot", args.plot)
     curves = _plotting.pushover_curves(s, umax=umax, n=args.points)
     derived = s.derived()
     if args.plot:
         fig = _plotting.plot_pushover(s, curves)
         fig.savefig(args.plot, dpi=150)
     if args.out:
-        _write_csv(args.out, curves, (*_CURVES, "theta", "uplift"))
+        _write_csv(args.out, curves, CSV_COLUMNS)
     if args.json:
         out = {
             "derived": derived,
             "curve": {k: curves[k].tolist() for k in _CURVES},
             "converged": curves["converged"],
+            "units": {"u": "m", "simplified": "N", "exact": "N", "numerical": "N",
+                      "angles": "rad (and deg in *_deg)", "derived": _UNITS},
         }
         print(json.dumps(out))
         return 0

@@ -11,6 +11,7 @@ import rockjax
 from rockjax import _plotting
 
 from ._common import (
+    _check_out_dir,
     _check_png,
     _check_r,
     _check_t1_steps,
@@ -20,8 +21,14 @@ from ._common import (
     _write_csv,
     add_model_arguments,
     CLIError,
+    model_info,
+    model_line,
+    record_info,
+    record_line,
 )
 
+#: the --out CSV columns and their units (the header reads t_s,u_m,v_m_s,theta_rad,uplift_m)
+CSV_COLUMNS = {"t": "s", "u": "m", "v": "m_s", "theta": "rad", "uplift": "m"}
 #: output step [s] of a free-vibration run (a ground-motion run uses the record's step)
 _FREE_DT = 0.002
 
@@ -64,25 +71,35 @@ def add_parser(subparsers):
         help="end time [s] (default: 4 s, or the record's length)",
     )
     add_model_arguments(m, "model of the fidelity ladder (default simplified)")
-    m.add_argument("--out", metavar="FILE.csv", help="write t, u, v, theta, uplift as CSV")
+    m.add_argument(
+        "--out",
+        metavar="FILE.csv",
+        help="write the time history as CSV, header t_s,u_m,v_m_s,theta_rad,uplift_m",
+    )
     m.add_argument("--plot", metavar="FILE.png", help="write a Fig 9/10-style plot")
     m.add_argument("--json", action="store_true", help="print a JSON summary and nothing else")
     m.set_defaults(func=run)
     return m
 
 
-def _build_excitation(args):
-    """(excitation, ground motion or None) from --u0/--v0 or --record."""
+def _build_excitation(args, s):
+    """(excitation, ground motion or None, what was read) from --u0/--v0 or --record."""
     if args.record is not None and args.u0 is not None:
         raise CLIError("give either --u0 (free vibration) or --record (ground motion), not both")
     if args.record is None:
         if args.u0 is None:
             raise CLIError("give --u0 M (free vibration) or --record FILE (ground motion)")
-        return rockjax.FreeVibration(args.u0, args.v0), None
-    gm = rockjax.GroundMotion.from_file(
-        args.record, units=args.units, scale=args.scale, dt=args.record_dt
-    )
-    return gm, gm
+        uo = float(s.u_overturn)
+        if abs(args.u0) > uo:
+            raise CLIError(
+                f"--u0 {args.u0:g} m is beyond u_overturn = {uo:.4g} m: the structure would "
+                "overturn at once (--u0 is in metres: 100 mm is --u0 0.1)"
+            )
+        excitation = rockjax.FreeVibration(args.u0, args.v0)
+        return excitation, None, {"type": "free_vibration", "u0": args.u0, "v0": args.v0}
+    rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
+    gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
+    return gm, gm, {"type": "ground_motion", **record_info(rec, args.scale)}
 
 
 def _end_time(args, gm):
@@ -93,20 +110,70 @@ def _end_time(args, gm):
     return 4.0
 
 
-def _write_plot(args, s, res, gm):
-    rec = pathlib.Path(args.record).name if gm is not None else ""
-    what = f"release u0 = {args.u0} m" if gm is None else f"{rec} x {args.scale}"
-    fig = _plotting.plot_response(s, res, ground_motion=gm, title=f"{args.model} model, {what}")
+def _write_plot(args, s, res, gm, read):
+    what = (
+        f"release u0 = {args.u0} m"
+        if gm is None
+        else f"{pathlib.Path(read['file']).name} x {args.scale:g} "
+        f"(PGA {read['scaled_pga_g']:.3g} g)"
+    )
+    title = f"{model_line(model_info(args))}; {what}"
+    fig = _plotting.plot_response(s, res, ground_motion=gm, title=title)
     fig.savefig(args.plot, dpi=150)
 
 
-def _print_summary(args, summary):
-    print(f"status        {summary['status']}")
-    print(f"peak |u|      {summary['peak_u']:.6g} m")
-    print(f"peak uplift   {summary['peak_uplift']:.6g} m")
-    print(f"impacts       {summary['n_impacts']}")
-    if summary["t_overturn"] is not None:
-        print(f"t_overturn    {summary['t_overturn']:.6g} s")
+#: units of the JSON result's values
+UNITS = {
+    "peak_u": "m", "t_peak": "s", "peak_theta": "rad", "peak_theta_over_alpha_c": "-",
+    "peak_uplift": "m", "impact_times": "s", "t_overturn": "s", "t_end": "s",
+    "residual_u": "m", "u0": "m", "v0": "m/s", "dt_s": "s", "duration_s": "s",
+    "pga_m_s2": "m/s2", "pga_g": "g", "t1": "s", "r": "-",
+}
+
+
+def _peak_theta(s, res, model, t_overturn):
+    """The peak rotation [rad]: from the exact peak |u| where the model maps u to theta
+    (the SDOF models), else the largest |theta| on the output grid up to overturning."""
+    mapped = model.theta_uplift_of_u(s, res.peak_u)
+    if mapped is not None:
+        return abs(float(mapped[0]))
+    ts, theta = np.asarray(res.ts), np.abs(np.asarray(res.theta))
+    keep = ts <= t_overturn if t_overturn is not None else np.ones(ts.shape, bool)
+    return float(np.max(theta[keep]))
+
+
+def _result(args, s, res, t1, read):
+    """The JSON result: what produced it, what was read, and the response (SI units)."""
+    summary = res.summary()
+    theta = _peak_theta(s, res, rockjax.get_model(args.model, args.impact), summary["t_overturn"])
+    r = float(s.restitution) if args.r is None else args.r
+    out = {**model_info(args), "r": r, "r_from": "Eq 3" if args.r is None else "--r",
+           "excitation": read, "t1": t1}
+    out.update(summary)
+    out["peak_theta"] = theta
+    out["peak_theta_over_alpha_c"] = theta / float(s.alpha_c)
+    out["message"] = res.message
+    out["units"] = UNITS
+    return out
+
+
+def _print_summary(args, out):
+    read = out["excitation"]
+    if read["type"] == "ground_motion":
+        print(f"record        {record_line(read)}")
+    else:
+        print(f"release       u0 = {read['u0']:g} m, v0 = {read['v0']:g} m/s")
+    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s")
+    print(f"status        {out['status']}")
+    print(f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s")
+    ratio = out["peak_theta_over_alpha_c"]
+    print(f"peak theta    {out['peak_theta']:.6g} rad = {ratio:.4g} alpha_c")
+    print(f"peak uplift   {out['peak_uplift']:.6g} m")
+    print(f"impacts       {out['n_impacts']}")
+    if out["t_overturn"] is not None:
+        print(f"t_overturn    {out['t_overturn']:.6g} s")
+    else:
+        print(f"residual u    {out['residual_u']:.6g} m at t = {out['t_end']:.6g} s")
     if args.out:
         print(f"time history written to {args.out}")
     if args.plot:
@@ -116,24 +183,26 @@ def _print_summary(args, summary):
 def run(args):
     s = _load_structure(args.structure)
     _check_png(args.plot)
-    excitation, gm = _build_excitation(args)
-    t1 = _end_time(args, gm)
+    _check_out_dir("--out", args.out)
+    _check_out_dir("--plot", args.plot)
     _check_r(args.r)
+    excitation, gm, read = _build_excitation(args, s)
+    t1 = _end_time(args, gm)
     _check_t1_steps(t1, _FREE_DT if gm is None else float(gm.dt), "output samples")
     if gm is None:
         ts = np.linspace(0.0, t1, max(2, int(round(t1 / _FREE_DT)) + 1))
     else:
         ts = None
     res = rockjax.simulate(s, excitation, t1, ts=ts, model=args.model, r=args.r, impact=args.impact)
-    summary = res.summary()
+    out = _result(args, s, res, t1, read)
     if args.out:
         cols = {k: np.asarray(getattr(res, k)) for k in ("ts", "u", "v", "theta", "uplift")}
         cols["t"] = cols.pop("ts")
-        _write_csv(args.out, cols, ("t", "u", "v", "theta", "uplift"))
+        _write_csv(args.out, cols, CSV_COLUMNS)
     if args.plot:
-        _write_plot(args, s, res, gm)
+        _write_plot(args, s, res, gm, read)
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(out))
         return 0
-    _print_summary(args, summary)
+    _print_summary(args, out)
     return 0

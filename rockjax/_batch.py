@@ -29,7 +29,8 @@ from ._checks import (
     default_substeps,
     stepper_grid_step,
 )
-from ._excitation import FreeVibration, GroundMotion
+from ._excitation import FreeVibration, GroundMotion, PaddedGroundMotion
+from ._records import common_time_step, on_grid, Record
 from ._response import Response
 from ._simulate import resample_outputs
 from ._status import STATUS_NAMES
@@ -38,14 +39,17 @@ from .integrators import RestartConfig, run, solve, StepperConfig
 from .models import get_model
 
 METHODS = ("rk4", "dopri5", "diffrax")
+#: free vibration [s] after each record's end when the records of a batch are a sequence
+DEFAULT_TAIL = 5.0
 
 
 class Summary(eqx.Module):
     """Per-member summaries of a batch (arrays of shape `(N,)`, SI units).
 
     `peak_u` [m] (peak |u| of the continuous solution), `peak_uplift` [m], `n_impacts`,
-    `status` (0 completed, 1 overturned, 2 max_impacts, 3 solver_failure) and `t_overturn`
-    [s] (`inf` if it did not overturn).
+    `status` (0 completed, 1 overturned, 2 max_impacts, 3 solver_failure), `t_overturn`
+    [s] (`inf` if it did not overturn) and `t_end` [s], the end of each member's run
+    (`t1`, or with a sequence of records its record's end plus `tail`).
     """
 
     peak_u: jnp.ndarray
@@ -53,6 +57,7 @@ class Summary(eqx.Module):
     n_impacts: jnp.ndarray
     status: jnp.ndarray
     t_overturn: jnp.ndarray
+    t_end: jnp.ndarray
 
     def __len__(self):
         return int(np.shape(self.peak_u)[0])
@@ -70,6 +75,7 @@ class Summary(eqx.Module):
             "n_impacts": np.asarray(self.n_impacts),
             "status": np.asarray(self.status_names),
             "t_overturn": np.asarray(self.t_overturn),
+            "t_end": np.asarray(self.t_end),
         }
 
 
@@ -90,7 +96,8 @@ def _records(excitation, record):
     if np.ndim(excitation.dt) != 0:
         raise ValueError(
             "the records of a batch must share one time step: dt must be a "
-            "scalar (resample the records to a common dt)"
+            "scalar (records of different time steps go in as a sequence, "
+            "excitation=[record, ...])"
         )
     acc = np.asarray(excitation.accel)
     if acc.ndim == 1:
@@ -110,6 +117,85 @@ def _records(excitation, record):
     return acc, rec
 
 
+@dataclasses.dataclass(frozen=True)
+class _Suite:
+    """Records of any time steps on one grid: `table` (n_records, n) [m/s²] sampled every
+    `dt` [s] (each record's samples kept, zero after its end), `lengths` its samples per
+    record and `durations` [s] each record's end."""
+
+    dt: float
+    table: np.ndarray
+    lengths: np.ndarray
+    durations: np.ndarray
+
+
+def _suite_item(i, item):
+    """(dt [s], samples [m/s²] times the GroundMotion's own scale, name) of one record."""
+    if isinstance(item, Record):
+        return item.dt, np.asarray(item.accel), item.source or f"record {i}"
+    if not isinstance(item, GroundMotion) or isinstance(item, PaddedGroundMotion):
+        raise ValueError(
+            f"excitation: a sequence must hold Records or GroundMotions, item {i} is a "
+            f"{type(item).__name__}"
+        )
+    if np.ndim(item.dt) != 0 or np.ndim(item.accel) != 1 or np.ndim(item.scale) != 0:
+        raise ValueError(
+            f"excitation: GroundMotion {i} of the sequence must hold one record (scalar dt "
+            "and scale, 1-D accel)"
+        )
+    if np.any(np.asarray(item.u0) != 0) or np.any(np.asarray(item.v0) != 0):
+        raise ValueError(
+            f"excitation: GroundMotion {i} of the sequence has u0 or v0; pass u0=, v0= to "
+            "simulate_batch instead"
+        )
+    return float(item.dt), np.asarray(item.accel) * float(item.scale), f"record {i}"
+
+
+def _make_suite(items):
+    """The records of a sequence, resampled exactly onto their common time step."""
+    if len(items) == 0:
+        raise ValueError("excitation: the sequence of records is empty")
+    dts, accels, names = zip(*(_suite_item(i, x) for i, x in enumerate(items)))
+    step = common_time_step(dts, names=names)
+    grids = [on_grid(a, int(round(d / step))) for d, a in zip(dts, accels)]
+    lengths = np.array([g.size for g in grids])
+    table = np.zeros((len(grids), int(lengths.max())))
+    for i, g in enumerate(grids):
+        table[i, : g.size] = g
+    durations = np.array([d * (a.size - 1) for d, a in zip(dts, accels)])
+    return _Suite(dt=step, table=table, lengths=lengths, durations=durations)
+
+
+def _suite_ends(suite, record, t1, tail):
+    """Each member's end [s]: its record's end plus `tail`, capped at `t1` when given."""
+    if tail is None:
+        tail = DEFAULT_TAIL
+    tl = np.asarray(tail, dtype=float) if np.ndim(tail) == 0 else None
+    if tl is None or not np.isfinite(tl) or tl < 0:
+        raise ValueError(f"tail must be a finite number of seconds >= 0, got {tail!r}")
+    ends = suite.durations[np.asarray(record)] + float(tl)
+    return ends if t1 is None else np.minimum(ends, _check_t1(t1))
+
+
+def _suite_members(suite, scale, record, t1, tail):
+    """scale, record and t_end of a sequence of records."""
+    n = suite.table.shape[0]
+    if record is None:
+        record = 0 if n == 1 else np.arange(n)
+    rec = np.asarray(record)
+    if not np.issubdtype(rec.dtype, np.integer) or np.any(rec < 0) or np.any(rec >= n):
+        raise ValueError(
+            f"record must hold integer indices into the {n} record(s) of the sequence, "
+            f"got {rec}"
+        )
+    if rec.ndim > 1:
+        raise ValueError(f"record must be a scalar or a 1-D array, got shape {rec.shape}")
+    t_end = _suite_ends(suite, rec, t1, tail)
+    if t_end.ndim == 1 and np.all(t_end == t_end[0]):
+        t_end = t_end[:1]  # one end for all: the stepper needs no per-member ends
+    return {"scale": 1.0 if scale is None else scale, "record": rec, "t_end": t_end}
+
+
 def _batch_length(structure, members):
     """N: the common length of every batched input (1 if none is batched)."""
     lengths = {}
@@ -127,22 +213,36 @@ def _batch_length(structure, members):
     return sizes.pop() if sizes else 1
 
 
-def _resolve(structure, excitation, scale, r, u0, v0, record):
-    """The batch: N, each per-member input as a scalar or an (N,) array, the table."""
-    check_scene(structure, excitation)
+def _resolve(structure, excitation, scale, r, u0, v0, record, t1, tail):
+    """The batch: N, each per-member input as a scalar or an (N,) array, the record table,
+    whether it is a free vibration, and the suite (a sequence of records) or None."""
+    suite = _make_suite(excitation) if isinstance(excitation, (list, tuple)) else None
+    if suite is None:
+        check_scene(structure, excitation)
+        if tail is not None:
+            raise ValueError(
+                "tail applies to a sequence of records (excitation=[record, ...]); a "
+                "single excitation runs to t1"
+            )
+    elif not isinstance(structure, RockingStructure):
+        raise ValueError(f"structure must be a RockingStructure, got {type(structure).__name__}")
     free = isinstance(excitation, FreeVibration)
     members = {
-        "u0": excitation.u0 if u0 is None else u0,
-        "v0": excitation.v0 if v0 is None else v0,
+        "u0": excitation.u0 if u0 is None and suite is None else (0.0 if u0 is None else u0),
+        "v0": excitation.v0 if v0 is None and suite is None else (0.0 if v0 is None else v0),
     }
-    if free:
+    if suite is not None:
+        members.update(_suite_members(suite, scale, record, t1, tail))
+        table = suite.table
+    elif free:
         if scale is not None or record is not None:
             raise ValueError("scale and record apply to a GroundMotion, not a FreeVibration")
-        members.update(scale=1.0, record=0)
+        members.update(scale=1.0, record=0, t_end=_check_t1(t1))
         table = None
     else:
         members["scale"] = excitation.scale if scale is None else scale
         table, members["record"] = _records(excitation, record)
+        members["t_end"] = _check_t1(t1)
     members["r"] = structure.restitution if r is None else r
     N = _batch_length(structure, members)
     for name, x in members.items():
@@ -152,7 +252,7 @@ def _resolve(structure, excitation, scale, r, u0, v0, record):
     rr = np.asarray(members["r"])
     if np.any(rr < 0) or np.any(rr > 1):
         raise ValueError(f"r must lie in [0, 1], got {rr}")
-    return N, members, table, free
+    return N, members, table, free, suite
 
 
 @functools.cache
@@ -165,7 +265,7 @@ def _member_structure(vals):
     return RockingStructure(**{k: vals[k] for k in FIELDS})
 
 
-def _stepper_chunk(model, batched, shared, table, dt_rec, t1, cfg, n_devices):
+def _stepper_chunk(model, batched, shared, table, lengths, dt_rec, cfg, n_devices):
     """Run one chunk on the batched stepper, split over `n_devices` local devices."""
 
     def kernel(batched):
@@ -173,7 +273,7 @@ def _stepper_chunk(model, batched, shared, table, dt_rec, t1, cfg, n_devices):
         n = next(iter(batched.values())).shape[0]
         u0, v0 = (jnp.broadcast_to(vals[k], (n,)) for k in ("u0", "v0"))
         return run(model, _member_structure(vals), table, vals["record"], dt_rec,
-                   vals["scale"], u0, v0, vals["r"], t1, cfg)
+                   vals["scale"], u0, v0, vals["r"], vals["t_end"], cfg, lengths)
 
     if n_devices == 1:
         return kernel(batched)
@@ -185,17 +285,18 @@ def _stepper_chunk(model, batched, shared, table, dt_rec, t1, cfg, n_devices):
     return f(batched)
 
 
-def _diffrax_chunk(model, batched, shared, table, dt_rec, t1, ts, cfg, free):
+def _diffrax_chunk(model, batched, shared, table, lengths, dt_rec, ts, cfg, free):
     """Run one chunk through the event-restart integrator under `jax.vmap`."""
 
     def one(b):
         vals = {**shared, **b}
         if free:
             exc = FreeVibration(vals["u0"], vals["v0"])
-        else:
-            exc = GroundMotion(dt=dt_rec, accel=table[vals["record"]], scale=vals["scale"],
-                               u0=vals["u0"], v0=vals["v0"])
-        return solve(model, _member_structure(vals), exc, t1, ts, vals["r"], cfg)
+        else:  # the table is padded: zero after the member's record ends
+            exc = PaddedGroundMotion(dt=dt_rec, accel=table[vals["record"]],
+                                     scale=vals["scale"], u0=vals["u0"], v0=vals["v0"],
+                                     end=dt_rec * (lengths[vals["record"]] - 1))
+        return solve(model, _member_structure(vals), exc, vals["t_end"], ts, vals["r"], cfg)
 
     return jax.vmap(one)(batched)
 
@@ -245,7 +346,7 @@ def _split(members, structure, N, dtype):
     return batched, values, shared
 
 
-def _run_chunks(plan, N, names, values, shared, table, ts_d, dtype, progress):
+def _run_chunks(plan, N, names, values, shared, tables, ts_d, dtype, progress):
     """Every chunk through its compiled kernel (the last padded), with a progress bar."""
     n_chunks = math.ceil(N / plan.chunk)
     auto = n_chunks > 1 and sys.stderr.isatty()  # no carriage returns in logs
@@ -257,12 +358,12 @@ def _run_chunks(plan, N, names, values, shared, table, ts_d, dtype, progress):
             idx = np.minimum(np.arange(lo, lo + plan.chunk), N - 1)  # pad the last chunk
             batched = {k: jnp.asarray(np.asarray(values[k])[idx],
                                       jnp.int32 if k == "record" else dtype) for k in names}
-            dt_rec, t1 = jnp.asarray(plan.dt_rec, dtype), jnp.asarray(plan.t1, dtype)
+            dt_rec = jnp.asarray(plan.dt_rec, dtype)
             if plan.method == "diffrax":
-                out = _diffrax_chunk_jit(plan.model, batched, shared, table, dt_rec, t1,
+                out = _diffrax_chunk_jit(plan.model, batched, shared, *tables, dt_rec,
                                          jnp.asarray(ts_d, dtype), plan.cfg, plan.free)
             else:
-                out = _stepper_chunk_jit(plan.model, batched, shared, table, dt_rec, t1,
+                out = _stepper_chunk_jit(plan.model, batched, shared, *tables, dt_rec,
                                          plan.cfg, plan.n_devices)
             n_keep = min(plan.chunk, N - lo)
             parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[:n_keep], out))
@@ -277,8 +378,9 @@ def _run_chunks(plan, N, names, values, shared, table, ts_d, dtype, progress):
 def simulate_batch(
     structure,
     excitation,
-    t1,
+    t1=None,
     *,
+    tail=None,
     scale=None,
     r=None,
     u0=None,
@@ -304,14 +406,32 @@ def simulate_batch(
     Each batched input is a 1-D array with one value per run (all of the same length N);
     scalars are shared. Batched inputs are the fields of `structure` (e.g.
     `structure.replace(k_f=np.linspace(...))`), the keyword arguments `scale`, `r`, `u0`,
-    `v0`, `record`, and the same fields of `excitation`. Several records of one time step go
-    in one `GroundMotion` with `accel` of shape (n_records, n_samples) (pad the shorter
-    ones with zeros), and `record` picks one per run (default: one run per record).
+    `v0`, `record`, and the same fields of `excitation`.
+
+    Several records, of any time steps and lengths, go in as a sequence
+    `excitation=[record, ...]` of `rockjax.Record`s or single-record `GroundMotion`s (whose
+    own `scale` multiplies their samples), and `record` picks one per run (default: one run
+    per record). They are resampled exactly onto their common time step
+    (`rockjax.common_time_step`: 0.005, 0.01 and 0.02 s give 0.005 s; linear
+    interpolation keeps every sample, so the piecewise-linear forcing is unchanged), and
+    each run ends at its own record's end plus `tail`: after that nothing counts (no
+    impacts, peaks or status from the padding that the longer records need).
 
     **Arguments:**
 
-    - `structure`, `excitation`, `t1` [s], `model`, `impact`, `r`: as `rockjax.simulate`;
-      every model runs on every method, the 2-DOF body (`"two_spring_2dof"`) included.
+    - `t1` [s]: the end time. Required for one `GroundMotion` or `FreeVibration`; with a
+      sequence of records it caps each run's end (default: no cap).
+    - `tail` [s]: with a sequence of records, the free vibration after each record's end
+      (default `DEFAULT_TAIL` = 5 s; the paper's impact rule counts every crossing of
+      u = 0, so the free rocking of the tail adds about 7 impacts per second for the
+      Table 1 column). `Summary.t_end` gives each run's end.
+    **Arguments:**
+
+    - `structure`, `excitation`, `model`, `impact`, `r`: as `rockjax.simulate` (or a
+      sequence of records, above); every model runs on every method, the 2-DOF body
+      (`"two_spring_2dof"`) included. Several records of one time step may also go in
+      one `GroundMotion` with `accel` of shape (n_records, n_samples), zero-padded, with
+      one `t1` for all (the padding then counts as ground motion at rest).
     - `method`: `"rk4"` (default) fixed steps of the record's dt / `substeps` with events
       located inside each step (the fast path); `"dopri5"`: adaptive Dormand–Prince 5(4)
       steps to `rtol`, `atol` inside the same loop; `"diffrax"`: `rockjax.simulate` under
@@ -327,7 +447,7 @@ def simulate_batch(
     - `ts` [s]: output times (full responses only). Fast methods compute the response on
       their grid and interpolate (cubic Hermite) to `ts`.
     - `summary_only`: return a `Summary` (peak_u, peak_uplift, n_impacts, status,
-      t_overturn) and store no time history.
+      t_overturn, t_end) and store no time history.
     - `max_pieces`: event-localised pieces per step (default 4 for rk4, 32 for the rigid
       `housner` model, whose settling impacts crowd, 8 for the 2-DOF body; 4096 for
       dopri5).
@@ -341,8 +461,8 @@ def simulate_batch(
       stderr is a terminal, so logs get no carriage returns).
 
     **Returns:** a `Summary`, or a `Response` whose arrays have a leading batch axis of
-    length N (`impact_times` has shape (N, max_impacts)). Failures come back per member as
-    `status`, never as NaN.
+    length N (`impact_times` has shape (N, max_impacts)); on the grid past a run's own end
+    its state is held. Failures come back per member as `status`, never as NaN.
 
     **Example:**
 
@@ -352,6 +472,11 @@ def simulate_batch(
     out = rockjax.simulate_batch(s, gm, 40.0, scale=np.linspace(0.1, 2.0, 10_000),
                                  summary_only=True)
     out.peak_u, out.status
+    # records of 0.01 and 0.02 s, each to its end + 5 s, at two scales
+    recs = [rockjax.read_record("IELC180.AT2"), rockjax.read_record("elCentro.AT2")]
+    out = rockjax.simulate_batch(s, recs, record=[0, 1, 0, 1], scale=[1, 1, 2, 2],
+                                 summary_only=True)
+    out.t_end                                          # [45.0, 36.16, 45.0, 36.16]
     ```
     """
     if method not in METHODS:
@@ -359,29 +484,39 @@ def simulate_batch(
     check_settings(method=method, rtol=rtol, atol=atol, max_impacts=max_impacts, dt=dt,
                    substeps=substeps)
     model = get_model(model, impact)
-    t1f = _check_t1(t1)
-    N, members, table, free = _resolve(structure, excitation, scale, r, u0, v0, record)
+    N, members, table, free, suite = _resolve(structure, excitation, scale, r, u0, v0, record,
+                                              t1, tail)
+    t_last = float(np.max(members["t_end"]))
     dtype = jnp.result_type(structure.B)
     check_float64(method, dtype)
-    _check_ts(ts, summary_only, t1f)
-    dt_rec, grid, table = _grid(excitation, table, free, t1f, dt)
+    _check_ts(ts, summary_only, t_last)
+    # each record's samples: the ground acceleration is zero after the last one
+    lengths = None if free else (suite.lengths if suite is not None else
+                                 np.full(table.shape[0], table.shape[1]))
+    dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last, dt)
     n_dev = _devices(devices)
     n_out = len(grid) if ts is None else len(ts)
     chunk = _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev)
     plan = _Plan(
-        model=model, method=method, free=free, dt_rec=dt_rec, t1=t1f, grid=grid,
+        model=model, method=method, free=free, dt_rec=dt_rec, t1=t_last, grid=grid,
         cfg=_config(model, method, free, len(grid) - 1, summary_only, max_impacts,
                     max_pieces, substeps, rtol, atol),
         n_devices=n_dev, chunk=chunk,
     )
     names, values, shared = _split(members, structure, N, dtype)
     ts_d = grid if ts is None else np.asarray(ts, float)
-    res = _run_chunks(plan, N, names, values, shared, jnp.asarray(table, dtype), ts_d, dtype,
-                      progress)
-    return _assemble(plan, res, structure, N, ts, summary_only)
+    tables = (jnp.asarray(table, dtype), None if free else jnp.asarray(lengths, jnp.int32))
+    res = _run_chunks(plan, N, names, values, shared, tables, ts_d, dtype, progress)
+    t_end = np.broadcast_to(np.asarray(members["t_end"], float), (N,))
+    return _assemble(plan, res, structure, N, ts, summary_only, t_end)
 
 
 def _check_t1(t1):
+    if t1 is None:
+        raise ValueError(
+            "t1 must be given: the end time [s] of a single excitation (only a sequence of "
+            "records has a default end, each record's end plus tail)"
+        )
     t1f = np.asarray(t1, dtype=float)
     if t1f.ndim != 0 or not np.isfinite(t1f) or not t1f > 0:
         raise ValueError(f"t1 must be a positive, finite scalar, got {t1f}")
@@ -404,8 +539,16 @@ def _check_ts(ts, summary_only, t1f):
 
 def _grid(excitation, table, free, t1f, dt):
     """(step [s], the grid [s], the record table padded past t1): the record's samples,
-    or dt for a free vibration."""
-    dt_rec, n_steps = stepper_grid_step(excitation, t1f, dt)
+    the common step of a suite, or dt for a free vibration."""
+    if isinstance(excitation, _Suite):
+        if dt is not None:
+            raise ValueError(
+                "dt applies to a free vibration; a sequence of records is integrated on "
+                "their common time step (use substeps to refine)"
+            )
+        dt_rec, n_steps = excitation.dt, int(math.ceil(t1f / excitation.dt - 1e-9))
+    else:
+        dt_rec, n_steps = stepper_grid_step(excitation, t1f, dt)
     grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
     if free:
         return dt_rec, grid, np.zeros((1, 2))
@@ -466,13 +609,14 @@ def _per_member(fn, structure, x, N):
     return fn(RockingStructure(**fields), x)
 
 
-def _assemble(plan, res, structure, N, ts, summary_only):
+def _assemble(plan, res, structure, N, ts, summary_only, t_end):
     """A Summary, or a Response with a leading batch axis of length N."""
     peak_u = jnp.asarray(res["peak_u"])
     peak_up = _per_member(lambda s, p: plan.model.peak_uplift(s, p, jnp.asarray(
         res["peak_uplift"])), structure, peak_u, N)
-    summary = Summary(peak_uplift=peak_up, **{k: jnp.asarray(res[k]) for k in
-                                              ("peak_u", "n_impacts", "status", "t_overturn")})
+    summary = Summary(peak_uplift=peak_up, t_end=jnp.asarray(t_end, peak_u.dtype),
+                      **{k: jnp.asarray(res[k]) for k in
+                         ("peak_u", "n_impacts", "status", "t_overturn")})
     if summary_only:
         return summary
     out = {k: res[k] for k in ("u", "v", "theta", "uplift", "impact_times")}
@@ -481,4 +625,5 @@ def _assemble(plan, res, structure, N, ts, summary_only):
         out = resample_outputs(plan.grid, out, out_ts, lambda u: _per_member(
             plan.model.theta_uplift_of_u, structure, jnp.asarray(u), N))
     return Response(ts=jnp.asarray(out_ts), **{k: jnp.asarray(v) for k, v in out.items()},
-                    **{f.name: getattr(summary, f.name) for f in dataclasses.fields(summary)})
+                    **{f.name: getattr(summary, f.name) for f in dataclasses.fields(summary)
+                       if f.name != "t_end"})

@@ -135,3 +135,16 @@ class GroundMotion(AbstractExcitation):
         nz = jnp.argmax(a != 0)
         d = -jnp.sign(self.scale * a[nz])
         return jnp.where(d == 0, 1.0, d)
+
+
+class PaddedGroundMotion(GroundMotion):
+    r"""A `GroundMotion` whose `accel` is zero-padded past its record's end `end` [s] (one
+    record of a batch over records of different lengths, on a common grid): the ground
+    acceleration is zero after `end`, as it is after the last sample of an unpadded record,
+    instead of falling linearly to the padding over one step. Internal to
+    `rockjax.simulate_batch`."""
+
+    end: jnp.ndarray = eqx.field(converter=_as_float_array, default=np.inf)
+
+    def ground_acceleration(self, t):
+        return jnp.where(t <= self.end, super().ground_acceleration(t), 0.0)

@@ -13,6 +13,10 @@ Three plain-text layouts are supported:
 - **One column** (``format="one_column"``): one acceleration per line, optionally preceded
   by text header lines; the time step must be given with ``dt=``.
 
+Units: a file that states its units (AT2 ``UNITS OF G``, a column title ``Accel[g]``) is
+read in those units; ``units=`` may repeat them but never contradict them (a ValueError
+names both). ``Record.units_source`` says where the units came from.
+
 Every record is returned as a :class:`Record` in SI units (m/s²). The first sample is
 taken to be at ``t = 0`` of the simulation: a two-column record whose time column starts at
 ``t0 != 0`` is shifted so that its first sample is at ``t = 0`` (``t0`` is discarded).
@@ -21,6 +25,7 @@ taken to be at ``t = 0`` of the simulation: a two-column record whose time colum
 from __future__ import annotations
 
 import dataclasses
+import fractions
 import math
 import os
 import re
@@ -28,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["G_STANDARD", "Record", "read_record"]
+__all__ = ["G_STANDARD", "Record", "common_time_step", "read_record"]
 
 G_STANDARD = 9.80665
 """Standard gravity [m/s²], used to convert records given in units of g."""
@@ -99,6 +104,11 @@ class Record:
         Header text of the file, if any (``""`` otherwise).
     units_in_file : str
         Units of the values in the file, ``"g"`` or ``"m/s2"``; ``accel`` is always m/s².
+    units_source : str
+        Where `units_in_file` came from: ``"file header"`` (the file states them; a
+        ``units=`` given as well agreed), ``"given"`` (the file states none, ``units=`` was
+        given), ``"AT2 default"`` (an AT2 header that states none: PEER's g), or ``""`` for
+        a record built from arrays.
 
     Notes
     -----
@@ -110,6 +120,7 @@ class Record:
     source: str = ""
     description: str = ""
     units_in_file: str = "m/s2"
+    units_source: str = ""
 
     def __post_init__(self) -> None:
         try:
@@ -137,6 +148,7 @@ class Record:
         object.__setattr__(self, "accel", accel)
         object.__setattr__(self, "source", str(self.source))
         object.__setattr__(self, "description", str(self.description))
+        object.__setattr__(self, "units_source", str(self.units_source))
 
     @property
     def npts(self) -> int:
@@ -156,7 +168,8 @@ class Record:
     def __repr__(self) -> str:
         return (
             f"Record(dt={self.dt!r}, npts={self.npts}, pga={self.pga:.4g} m/s2, "
-            f"source={self.source!r}, units_in_file={self.units_in_file!r})"
+            f"source={self.source!r}, units_in_file={self.units_in_file!r}, "
+            f"units_source={self.units_source!r})"
         )
 
 
@@ -180,42 +193,73 @@ def _classify_unit_token(token: str) -> str | None:
     return None
 
 
-def _units_from_header(header: str, source: str) -> str | None:
-    """Units stated in the header text, or None when the header says nothing recognizable.
+def _units_from_header(header: str, source: str) -> tuple[str, str] | None:
+    """(units, the header text that states them) or None when the header states nothing
+    recognizable; ``("both", ...)`` when it states g and m/s2.
 
     Raises ValueError when the header states units that this reader cannot convert
     (e.g. cm/s², or the cm/sec of a velocity record).
     """
     header = header.replace("²", "^2")
-    found: list[tuple[str, str]] = []
+    found: list[tuple[str, str, str]] = []
     for m in _UNITS_PHRASE_RE.finditer(header):
         token = m.group(1)
         kind = _classify_unit_token(token)
         if kind is None and "/" in token:
             kind = "unsupported"  # e.g. "UNITS OF CM/SEC" (a velocity record)
         if kind is not None:
-            found.append((kind, token))
+            found.append((kind, token, m.group(0).strip()))
     for m in _UNITS_BRACKET_RE.finditer(header):
         token = m.group(1)
         kind = _classify_unit_token(token)
         if kind is not None:
-            found.append((kind, token))
+            start = m.start()  # quote the column title too: "Accel[g]", not "[g]"
+            while start > 0 and (header[start - 1].isalnum() or header[start - 1] in "_."):
+                start -= 1
+            found.append((kind, token, header[start : m.end()].strip()))
     if not found:
         return None
-    bad = [tok for kind, tok in found if kind == "unsupported"]
+    bad = [tok for kind, tok, _ in found if kind == "unsupported"]
     if bad:
         raise ValueError(
             f"{source}: the header states units {bad[0]!r}, which are not supported; "
-            "records must be in g or m/s2 (pass units='g' or units='m/s2' to override "
-            "if the header is wrong)"
+            "records must be in g or m/s2 (convert the values, or build a Record from "
+            "arrays)"
         )
-    kinds = {kind for kind, _ in found}
+    kinds = {kind for kind, _, _ in found}
     if len(kinds) > 1:
-        raise ValueError(
-            f"{source}: the header states conflicting units {sorted(kinds)}; "
-            "pass units='g' or units='m/s2'"
-        )
-    return kinds.pop()
+        return "both", ", ".join(repr(text) for _, _, text in found)
+    return kinds.pop(), repr(found[0][2])
+
+
+def _resolve_units(
+    stated: tuple[str, str] | None, given: str | None, source: str, default: str | None
+) -> tuple[str, str]:
+    """(units, where they came from) from what the file states and what was given: a file
+    that states its units wins, and units given as well must agree with them."""
+    if stated is not None and stated[0] == "both":
+        if given is None:
+            raise ValueError(
+                f"{source}: the header states conflicting units ['g', 'm/s2'] "
+                f"({stated[1]}); pass units='g' or units='m/s2'"
+            )
+        return given, "given"
+    if stated is not None:
+        units, text = stated
+        if given is not None and given != units:
+            raise ValueError(
+                f"{source}: the file states units {units} ({text} in its header) but "
+                f"units={given!r} was given; omit units= or pass units={units!r}"
+            )
+        return units, "file header"
+    if given is not None:
+        return given, "given"
+    if default is not None:
+        return default, "AT2 default"
+    raise ValueError(
+        f"{source}: the units of the acceleration are not stated in the file; "
+        "pass units='g' or units='m/s2'"
+    )
 
 
 def _tokens(line: str) -> list[str]:
@@ -266,7 +310,7 @@ def _match_npts_dt(line: str) -> tuple[int, float] | None:
 
 def _read_at2(
     lines: list[str], source: str, units: str | None, dt_arg: float | None
-) -> tuple[float, np.ndarray, str, str]:
+) -> tuple[float, np.ndarray, tuple[str, str], str]:
     if len(lines) < 4:
         raise ValueError(
             f"{source}: a PEER AT2 file needs 4 header lines, found only {len(lines)} lines"
@@ -281,8 +325,9 @@ def _read_at2(
     if not (math.isfinite(dt) and dt > 0.0):
         raise ValueError(f"{source}, line 4: DT must be > 0 [s], got DT={dt!r}")
     _check_dt_arg(dt_arg, dt, source)
-    if units is None:
-        units = _units_from_header("\n".join(lines[:3]), source) or "g"
+    units_and_source = _resolve_units(
+        _units_from_header("\n".join(lines[:3]), source), units, source, "g"
+    )
     values: list[float] = []
     for lineno, line in enumerate(lines[4:], start=5):
         toks = _tokens(line)
@@ -299,7 +344,7 @@ def _read_at2(
             "in the data section"
         )
     description = "\n".join(line.rstrip() for line in lines[:4])
-    return dt, np.asarray(values, dtype=np.float64), units, description
+    return dt, np.asarray(values, dtype=np.float64), units_and_source, description
 
 
 def _read_columns(
@@ -378,6 +423,16 @@ def _detect_format(lines: list[str], path: Path, source: str) -> str:
     raise ValueError(f"{source}: no numeric data found (empty file or header only)")
 
 
+def record_format(path: str | os.PathLike[str]) -> str:
+    """The layout of a record file as `read_record` detects it: ``"at2"``,
+    ``"two_column"`` or ``"one_column"`` (ValueError or OSError as `read_record`)."""
+    source = os.fspath(path)
+    text = Path(source).read_text(encoding="utf-8", errors="replace")
+    if not text.strip():
+        raise ValueError(f"{source}: file is empty (no data)")
+    return _detect_format(text.splitlines(), Path(source), source)
+
+
 def read_record(
     path: str | os.PathLike[str],
     *,
@@ -393,10 +448,12 @@ def read_record(
         File to read.
     units : {"g", "m/s2"}, optional
         Units of the acceleration values in the file (``"m/s^2"`` and ``"mps2"`` are
-        accepted for m/s²). Overrides whatever the header says. When omitted: for AT2
-        files the header phrase ``UNITS OF G`` is used and g is the default; for one- and
-        two-column files the header must state the units (e.g. ``Accel[g]``), otherwise
-        a ValueError asks for ``units=``.
+        accepted for m/s²). A file that states its units (``UNITS OF G`` in an AT2
+        header, ``Accel[g]`` in a column header) is read in those units, and `units`
+        must then agree with them: a contradiction is a ValueError naming both. When
+        the file states nothing: `units` is used; an AT2 file without it is in g (PEER's
+        convention); a one- or two-column file without it is a ValueError asking for
+        ``units=``. ``Record.units_source`` records which rule applied.
     dt : float, optional
         Time step [s], > 0. Required for one-column files. For AT2 and two-column files
         the step comes from the file; a ``dt`` passed as well must agree with it.
@@ -416,7 +473,8 @@ def read_record(
     FileNotFoundError
         If `path` does not exist.
     ValueError
-        For unknown `units` or `format`, a missing or non-positive `dt`, and malformed
+        For unknown `units` or `format`, `units` that contradict the file's header, a
+        missing or non-positive `dt`, and malformed
         files: no data, non-numeric text or NaN/inf in the data section (the message
         names the line), an NPTS count that does not match the values found, a time
         column that is not strictly increasing or not uniform, or fewer than 2 samples.
@@ -453,7 +511,7 @@ def read_record(
         format = _detect_format(lines, p, source)
 
     if format == "at2":
-        dt_file, accel, units, description = _read_at2(lines, source, units, dt)
+        dt_file, accel, (units, units_source), description = _read_at2(lines, source, units, dt)
     else:
         ncols = 2 if format == "two_column" else 1
         if ncols == 1 and dt is None:
@@ -470,13 +528,9 @@ def read_record(
         else:
             dt_file = float(dt)  # type: ignore[arg-type]
         description = "\n".join(header).strip()
-        if units is None:
-            units = _units_from_header(description, source)
-            if units is None:
-                raise ValueError(
-                    f"{source}: the units of the acceleration are not stated in the file; "
-                    "pass units='g' or units='m/s2'"
-                )
+        units, units_source = _resolve_units(
+            _units_from_header(description, source), units, source, None
+        )
     if accel.size < 2:
         raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
     scale = G_STANDARD if units == "g" else 1.0
@@ -486,4 +540,77 @@ def read_record(
         source=source,
         description=description,
         units_in_file=units,
+        units_source=units_source,
     )
+
+
+#: a common step more than this many times finer than the finest record is refused
+MAX_GRID_REFINEMENT = 10
+
+
+def _as_fraction(dt: float) -> fractions.Fraction | None:
+    """`dt` [s] as a ratio of integers (denominator up to 10**6), or None when no such
+    ratio is within 1e-9 of it."""
+    frac = fractions.Fraction(dt).limit_denominator(10**6)
+    return frac if frac > 0 and abs(float(frac) - dt) <= 1e-9 * dt else None
+
+
+def common_time_step(dts, *, names=None, max_refinement: int = MAX_GRID_REFINEMENT) -> float:
+    """The largest time step [s] that divides every step in `dts` [s] a whole number of
+    times: the grid on which records of different steps are resampled exactly.
+
+    The steps are read as ratios of integers (0.005 = 1/200, 0.01 = 1/100, 0.02 = 1/50 give
+    0.005), so float steps such as 0.019999999999999997 count as 0.02. When one of `dts` is
+    the common step, that float is returned unchanged.
+
+    Raises ValueError, naming the steps (and the records' `names` when given), when a step
+    is not positive and finite, is not a ratio of integers with a denominator up to 10**6,
+    or when the common step would be more than `max_refinement` times finer than the
+    finest record (0.01 s and 0.0073 s need a 0.0001 s grid, 73 times finer).
+    """
+    dts = [float(d) for d in dts]
+    labels = list(names) if names is not None else [None] * len(dts)
+    if not dts:
+        raise ValueError("common_time_step needs at least one time step")
+
+    def said(i):
+        return f"{labels[i]} dt = {dts[i]:g} s" if labels[i] is not None else f"{dts[i]:g} s"
+
+    fracs = []
+    for i, d in enumerate(dts):
+        if not (math.isfinite(d) and d > 0):
+            raise ValueError(f"time steps must be positive and finite, got {said(i)}")
+        frac = _as_fraction(d)
+        if frac is None:
+            raise ValueError(
+                f"the time step {said(i)} is not a ratio of integers (denominator up to "
+                "10**6); resample the record to a step such as 0.005, 0.01 or 0.02 s"
+            )
+        fracs.append(frac)
+    num = math.gcd(*(f.numerator for f in fracs))
+    den = math.lcm(*(f.denominator for f in fracs))
+    common = fractions.Fraction(num, den)
+    finest = min(dts)
+    if finest / float(common) > max_refinement * (1 + 1e-9):
+        detail = ", ".join(said(i) for i in range(len(dts)))
+        raise ValueError(
+            f"the records' time steps ({detail}) have no common step coarser than "
+            f"{float(common):g} s, {finest / float(common):.4g} times finer than the finest "
+            f"record (at most {max_refinement} is allowed); resample the records to a "
+            "common step first"
+        )
+    for d, f in zip(dts, fracs):
+        if f == common:
+            return d
+    return float(common)
+
+
+def on_grid(accel: np.ndarray, m: int) -> np.ndarray:
+    """Samples `accel` (1-D) linearly interpolated onto a grid `m` times finer: the
+    original samples are kept (every `m`-th point), so the piecewise-linear forcing is
+    unchanged."""
+    accel = np.asarray(accel, dtype=np.float64)
+    if m == 1:
+        return accel
+    x = np.arange((accel.size - 1) * m + 1) / m
+    return np.interp(x, np.arange(accel.size, dtype=np.float64), accel)

@@ -1,5 +1,9 @@
 """The fast path (method "rk4" / "dopri5") and simulate_batch: accuracy against the scipy
-reference, convergence order, batch == single run, chunking, sharding, gradients, errors."""
+reference, convergence order, batch == single run, chunking, sharding, gradients, errors,
+and batches over records of different time steps and lengths.
+
+The ground motions are synthetic (`rockjax.datasets.synthetic_ground_motion`): the file
+runs without the shared records. One test reads the real records (mixed time steps)."""
 
 from __future__ import annotations
 
@@ -12,12 +16,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from test_reference_scipy import read_at2, reference_simulate
+from test_records import synthetic
+from test_reference_scipy import reference_simulate
 
 import rockjax
 from rockjax import FreeVibration, GroundMotion, simulate, simulate_batch
 
-T_EQ = 10.0  # El Centro window of these tests [s] (the strong motion is in it)
+T_EQ = 10.0  # length of the synthetic record of these tests [s]
 
 
 def _fields(s):
@@ -25,16 +30,17 @@ def _fields(s):
 
 
 @pytest.fixture(scope="module")
-def record(ground_motions_dir):
-    dt, accel = read_at2(ground_motions_dir / "IELC180.AT2")
-    n = int(round(T_EQ / dt)) + 1
-    return dt, accel[:n]
+def record():
+    """A synthetic 10-s record at 0.01 s with El Centro's PGA (3.07 m/s²): the Table 1
+    column rocks at x0.3-1.4 and overturns at x2.0 (seed 1 was chosen for that)."""
+    rec = synthetic(seed=1, dt=0.01, duration=T_EQ, pga=3.07)
+    return rec.dt, np.asarray(rec.accel)
 
 
 @pytest.fixture(scope="module")
 def gm(record):
     dt, accel = record
-    return GroundMotion(dt=dt, accel=accel)  # read_at2 gives m/s²
+    return GroundMotion(dt=dt, accel=accel)
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +75,7 @@ def test_dopri5_free_vibration_matches_scipy(column, free_reference):
 
 
 @pytest.mark.parametrize("substeps, tol", [(1, 1e-4), (2, 1e-5)])
-def test_rk4_el_centro_peak_and_impacts(column, gm, eq_reference, substeps, tol):
+def test_rk4_record_peak_and_impacts(column, gm, eq_reference, substeps, tol):
     res = simulate(column, gm, T_EQ, method="rk4", substeps=substeps)
     ref = eq_reference
     assert int(res.n_impacts) == ref.n_impacts
@@ -89,7 +95,7 @@ def test_rk4_converges_at_fourth_order(column, gm, eq_reference):
     assert np.all(rates > 3.3), (errs, rates)
 
 
-def test_dopri5_el_centro_at_tolerance(column, gm, eq_reference):
+def test_dopri5_record_at_tolerance(column, gm, eq_reference):
     res = simulate(column, gm, T_EQ, method="dopri5", rtol=1e-10, atol=1e-12)
     assert int(res.n_impacts) == eq_reference.n_impacts
     assert abs(float(res.peak_u) / eq_reference.peak_u - 1) < 1e-8
@@ -278,7 +284,7 @@ print(json.dumps(dict(n=len(jax.local_devices()), a=np.asarray(a.peak_u).tolist(
     assert d["n"] == 4
     # free vibration: equal to rounding (vector widths differ between the two splits)
     assert d["na"] == d["nb"] and d["du"] < 1e-9
-    # El Centro: rounding differences (vector widths differ) grow through the impacts
+    # the record: rounding differences (vector widths differ) grow through the impacts
     assert d["sa"] == d["sb"] and 1 in d["sa"]
     np.testing.assert_allclose(d["a"], d["b"], rtol=1e-5)
 
@@ -320,7 +326,7 @@ def test_dopri5_forward_gradient(column):
     np.testing.assert_allclose(g, fd, rtol=1e-5)
 
 
-def test_rk4_el_centro_scale_gradient(column, gm):
+def test_rk4_record_scale_gradient(column, gm):
     def peak(sc):
         res = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel[:401], scale=sc), 4.0,
                        method="rk4")
@@ -392,3 +398,136 @@ def test_two_spring_2dof_stepper_gradient(column):
     g = jax.jacfwd(peak)(jnp.asarray(5.5e5))
     fd = _fd5(peak, jnp.asarray(5.5e5), 50.0)
     np.testing.assert_allclose(g, fd, rtol=1e-6)
+
+
+# ------------------------------------------- records of different time steps and lengths
+
+TAIL = 1.5  # free vibration after each record's end in these tests [s]
+
+
+@pytest.fixture(scope="module")
+def mixed():
+    """Three synthetic records at 0.005, 0.01 and 0.02 s, 3, 5 and 2.5 s long."""
+    return [synthetic(seed=11, dt=0.005, duration=3.0, pga=3.0),
+            synthetic(seed=12, dt=0.01, duration=5.0, pga=3.5),
+            synthetic(seed=13, dt=0.02, duration=2.5, pga=4.0)]
+
+
+@pytest.fixture(scope="module")
+def mixed_batch(column, mixed):
+    """Every record at two scales in one batch, each to its end + TAIL."""
+    return simulate_batch(column, mixed, tail=TAIL, record=np.array([0, 1, 2, 0, 1, 2]),
+                          scale=np.array([1.0, 1.0, 1.0, 3.0, 3.0, 3.0]), summary_only=True,
+                          progress=False)
+
+
+def test_mixed_time_steps_equal_single_runs(column, mixed, mixed_batch):
+    """One batch over records of 0.005, 0.01 and 0.02 s (resampled exactly onto 0.005 s):
+    each member equals `rockjax.simulate` of its record to its own end + tail (before,
+    the batch refused records of different time steps)."""
+    out = mixed_batch
+    ends = [r.dt * (r.npts - 1) + TAIL for r in mixed]
+    np.testing.assert_allclose(out.t_end, ends * 2, rtol=1e-12)
+    for k in range(6):
+        rec, sc = mixed[k % 3], [1.0, 3.0][k // 3]
+        one = simulate(column, GroundMotion.from_record(rec, scale=sc), ends[k % 3],
+                       rtol=1e-10, atol=1e-12)
+        assert out.status_names[k] == one.status_name
+        assert int(out.n_impacts[k]) == int(one.n_impacts)
+        np.testing.assert_allclose(out.peak_u[k], one.peak_u, rtol=2e-6)
+        np.testing.assert_allclose(out.peak_uplift[k], one.peak_uplift, rtol=2e-5, atol=1e-12)
+    assert "overturned" in out.status_names and "completed" in out.status_names
+
+
+def test_ended_member_takes_nothing_from_the_padding(column, mixed):
+    """The short record's member stops at its end + tail although the batch runs on to the
+    long record's end: no impacts, peaks or max_impacts status from the padding. Zero
+    padding to the longest record (what `rockjax sweep` did) counts the free rocking after
+    the short record as impacts and hits max_impacts."""
+    short, long_ = mixed[2], mixed[1]
+    end = short.dt * (short.npts - 1) + TAIL
+    alone = simulate_batch(column, [short], tail=TAIL, summary_only=True, progress=False)
+    assert float(alone.t_end[0]) == pytest.approx(end)
+    n = int(alone.n_impacts[0])
+    both = simulate_batch(column, [short, long_], tail=TAIL, max_impacts=n + 1,
+                          summary_only=True, progress=False)
+    assert both.status_names[0] == "completed" and int(both.n_impacts[0]) == n
+    # the same run on the finer common grid of the pair (0.01 s, not 0.02 s)
+    np.testing.assert_allclose(both.peak_u[0], alone.peak_u[0], rtol=1e-5)
+    assert float(both.t_end[1]) > float(both.t_end[0]) + 1.0
+    padded = np.zeros(long_.npts * 2)
+    padded[: short.npts] = short.accel
+    old = simulate_batch(column, GroundMotion(dt=short.dt, accel=padded),
+                         float(both.t_end[1]), max_impacts=n + 1, summary_only=True)
+    assert old.status_names == ["max_impacts"]  # the phantom impacts of the padding
+    # the full history holds the member's state after its end
+    full = simulate_batch(column, [short, long_], tail=TAIL, progress=False)
+    after = np.asarray(full.ts) >= end
+    u0 = np.asarray(full.u)[0]
+    assert np.all(u0[after] == u0[after][0]) and np.any(np.diff(np.asarray(full.u)[1][after]))
+
+
+def test_mixed_records_on_every_method(column, mixed):
+    """GroundMotions in the sequence (their own scale folded in), a t1 cap, and the
+    dopri5 and diffrax methods agree with rk4."""
+    gms = [GroundMotion.from_record(mixed[0], scale=2.0), mixed[2]]
+    t1 = 4.2  # caps the first record's end (3 s + 1.5 s), not the second's (2.5 s + 1.5 s)
+    runs = {m: simulate_batch(column, gms, t1, tail=TAIL, scale=0.5, method=m,
+                              summary_only=True, progress=False)
+            for m in ("rk4", "dopri5", "diffrax")}
+    np.testing.assert_allclose(runs["rk4"].t_end, [4.2, 4.0], rtol=1e-12)
+    for k, rec in enumerate([mixed[0], mixed[2]]):
+        one = simulate(column, GroundMotion.from_record(rec, scale=[1.0, 0.5][k]),
+                       [4.2, 4.0][k], rtol=1e-10, atol=1e-12)
+        for out in runs.values():
+            np.testing.assert_array_equal(out.t_end, runs["rk4"].t_end)
+            assert int(out.n_impacts[k]) == int(one.n_impacts)
+            np.testing.assert_allclose(out.peak_u[k], one.peak_u, rtol=1e-5)
+
+
+def test_real_records_of_three_time_steps(column, ground_motions_dir):
+    """The shared records at 0.005, 0.01 and 0.02 s in one batch, each to its own end +
+    tail, equal single runs of `rockjax.simulate` (the real-record check of this file)."""
+    names = ["RSN753_LOMAP_CLS000.AT2", "IELC180.AT2", "elCentro.AT2"]
+    recs = [rockjax.read_record(ground_motions_dir / n) for n in names]
+    out = simulate_batch(column, recs, tail=TAIL, summary_only=True, progress=False)
+    assert [r.dt for r in recs] == [0.005, 0.01, 0.02]
+    for k, rec in enumerate(recs):
+        end = rec.dt * (rec.npts - 1) + TAIL
+        assert float(out.t_end[k]) == pytest.approx(end)
+        one = simulate(column, GroundMotion.from_record(rec), end, method="dopri5",
+                       rtol=1e-10, atol=1e-12)
+        assert out.status_names[k] == one.status_name
+        assert int(out.n_impacts[k]) == int(one.n_impacts)
+        np.testing.assert_allclose(out.peak_u[k], one.peak_u, rtol=1e-5)
+
+
+@pytest.mark.parametrize(
+    "excitation, kwargs, match",
+    [
+        ("mixed", dict(tail=-1.0), "tail must be a finite number of seconds >= 0"),
+        ("mixed", dict(tail=np.ones(2)), "tail must be a finite number"),
+        ("gm", dict(tail=1.0), "tail applies to a sequence of records"),
+        ("gm", dict(), "t1 must be given"),
+        ([], dict(), "the sequence of records is empty"),
+        (["x"], dict(), "item 0 is a str"),
+        ("u0", dict(), "has u0 or v0; pass u0=, v0="),
+        ("2d", dict(), "must hold one record"),
+        ("odd-dt", dict(), "no common step coarser than 0.0001 s"),
+        ("mixed", dict(record=np.array([0, 3])), "record must hold integer indices into the 3"),
+        ("mixed", dict(dt=0.01), "dt applies to a free vibration"),
+        ("mixed", dict(t1=-1.0), "t1 must be a positive"),
+    ],
+)
+def test_sequence_errors(column, mixed, excitation, kwargs, match):
+    a = np.zeros(11)
+    cases = {
+        "mixed": mixed,
+        "gm": GroundMotion(dt=0.01, accel=a),
+        "u0": [GroundMotion(dt=0.01, accel=a, u0=0.01)],
+        "2d": [GroundMotion(dt=0.01, accel=np.zeros((2, 11)))],
+        "odd-dt": [rockjax.Record(dt=0.01, accel=a), rockjax.Record(dt=0.0073, accel=a)],
+    }
+    exc = cases.get(excitation, excitation) if isinstance(excitation, str) else excitation
+    with pytest.raises(ValueError, match=match):
+        simulate_batch(column, exc, **kwargs)

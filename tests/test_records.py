@@ -1,46 +1,34 @@
 """Tests for the ground-motion record readers and the El Centro dataset helper.
 
-The real records are read-only files outside the repository (see PROVENANCE.md next to
-them); nothing here touches the network, and malformed inputs are written to tmp_path.
+Everything runs on records the project makes (`rockjax.datasets.synthetic_ground_motion`,
+written to tmp_path files in the AT2, two-column and one-column layouts by the writers
+below, which tests/test_sweep_cli.py and tests/test_batch.py use too). One test reads the
+real records (read-only files outside the repository, see PROVENANCE.md next to them)
+and skips without them; nothing here touches the network.
 """
 
 from __future__ import annotations
 
-import os
-import shutil
+import hashlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rockjax import datasets
-from rockjax._records import G_STANDARD, read_record, Record
+from rockjax._records import common_time_step, G_STANDARD, on_grid, read_record, Record
 
-SHARED = Path(
-    os.environ.get("ROCKJAX_SHARED_DATA")
-    or Path(__file__).resolve().parents[2] / "shared" / "data" / "ground_motions"
-)
-
-# file -> (read_record kwargs, dt [s], npts, PGA [m/s^2], units_in_file), from PROVENANCE.md
+# file -> (read_record kwargs, dt [s], npts, PGA [m/s^2], units_in_file, units_source),
+# from PROVENANCE.md
 EXPECTED = {
-    "IELC180.AT2": ({}, 0.01, 4000, 0.3129 * G_STANDARD, "g"),
-    "elCentro.AT2": ({}, 0.02, 1559, 0.3188 * G_STANDARD, "g"),
-    "elcentro_NS_full.dat": ({"units": "g"}, 0.02, 2688, 0.3487 * G_STANDARD, "g"),
-    "RSN1106_KOBE_KJM000.AT2": ({}, 0.02, 7500, 0.8342 * G_STANDARD, "g"),
-    "Northridge_Sylmar_County.dat": ({"units": "m/s2"}, 0.02, 3000, 8.2676, "m/s2"),
-    "RSN753_LOMAP_CLS000.AT2": ({}, 0.005, 7995, 0.6447 * G_STANDARD, "g"),
-    "ChiChi.dat": ({}, 0.01, 5279, 0.3610 * G_STANDARD, "g"),
+    "IELC180.AT2": ({}, 0.01, 4000, 0.3129 * G_STANDARD, "g", "file header"),
+    "elCentro.AT2": ({}, 0.02, 1559, 0.3188 * G_STANDARD, "g", "file header"),
+    "elcentro_NS_full.dat": ({"units": "g"}, 0.02, 2688, 0.3487 * G_STANDARD, "g", "given"),
+    "RSN1106_KOBE_KJM000.AT2": ({}, 0.02, 7500, 0.8342 * G_STANDARD, "g", "file header"),
+    "Northridge_Sylmar_County.dat": ({"units": "m/s2"}, 0.02, 3000, 8.2676, "m/s2", "given"),
+    "RSN753_LOMAP_CLS000.AT2": ({}, 0.005, 7995, 0.6447 * G_STANDARD, "g", "file header"),
+    "ChiChi.dat": ({}, 0.01, 5279, 0.3610 * G_STANDARD, "g", "file header"),
 }
-
-
-def shared_file(name: str) -> Path:
-    path = SHARED / name
-    if not path.is_file():
-        pytest.skip(
-            f"shared ground-motion record {path} not available "
-            "(set ROCKJAX_SHARED_DATA to the ground_motions folder)"
-        )
-    return path
 
 
 def write(tmp_path: Path, name: str, text: str) -> Path:
@@ -56,62 +44,178 @@ AT2_HEADER = (
 )
 
 
-# --- real records -----------------------------------------------------------------------
+# --- writers of synthetic records (also used by test_sweep_cli.py and test_batch.py) ------
 
 
-@pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_shared_records_match_provenance(name):
-    kwargs, dt, npts, pga, units = EXPECTED[name]
-    rec = read_record(shared_file(name), **kwargs)
-    assert isinstance(rec, Record)
-    assert rec.dt == pytest.approx(dt, rel=1e-9)
-    assert rec.npts == npts == rec.accel.shape[0]
-    assert rec.accel.dtype == np.float64 and rec.accel.ndim == 1
-    assert np.all(np.isfinite(rec.accel))
-    # PROVENANCE.md gives 4 significant digits, so 2e-4 relative is the honest tolerance.
-    assert rec.pga == pytest.approx(pga, rel=2e-4)
-    assert float(np.max(np.abs(rec.accel))) == pytest.approx(pga, rel=2e-4)
-    assert rec.units_in_file == units
-    assert rec.source == str(shared_file(name))
+def synthetic(seed=0, dt=0.01, duration=4.0, pga=3.0):
+    """`datasets.synthetic_ground_motion`: a Record in m/s² (not a real earthquake)."""
+    return datasets.synthetic_ground_motion(seed=seed, dt=dt, duration=duration, pga=pga)
 
 
-def test_ielc180_exact_values():
-    rec = read_record(shared_file("IELC180.AT2"))
+def write_at2(path, rec, units_line="ACCELERATION TIME HISTORY IN UNITS OF G.", per_line=5):
+    """`rec` as a PEER AT2 file, values in g (`units_line`: the third header line)."""
+    vals = np.asarray(rec.accel) / G_STANDARD
+    rows = [
+        "".join(f"{v:17.9E}" for v in vals[i : i + per_line]) for i in range(0, vals.size, per_line)
+    ]
+    head = ["SYNTHETIC RECORD (rockjax.datasets.synthetic_ground_motion)", rec.source, units_line,
+            f"NPTS=  {vals.size}, DT= {rec.dt:.6f} SEC"]
+    Path(path).write_text("\n".join(head + rows) + "\n")
+    return Path(path)
+
+
+def write_two_column(path, rec, header="Time[s] Accel[g]", in_g=True):
+    """`rec` as two columns t [s], a (in g or m/s²), after the `header` lines (may be "")."""
+    vals = np.asarray(rec.accel) / (G_STANDARD if in_g else 1.0)
+    body = "\n".join(f"{i * rec.dt:.6f}\t{v:.10e}" for i, v in enumerate(vals))
+    Path(path).write_text((header + "\n" if header else "") + body + "\n")
+    return Path(path)
+
+
+def write_one_column(path, rec, in_g=True):
+    """`rec` as one column of accelerations (in g or m/s²), no header."""
+    vals = np.asarray(rec.accel) / (G_STANDARD if in_g else 1.0)
+    Path(path).write_text("\n".join(f"{v:.10e}" for v in vals) + "\n")
+    return Path(path)
+
+
+# --- the real records (the only test that needs the shared data) -------------------------
+
+
+def test_shared_records_match_provenance(ground_motions_dir):
+    """Every shared record reads as PROVENANCE.md says, with its units and their source; a
+    file that states g refuses m/s2 (it was read 9.81 times too weak before). One test for
+    all seven records: a checkout without them skips once."""
+    for name, (kwargs, dt, npts, pga, units, source) in sorted(EXPECTED.items()):
+        path = ground_motions_dir / name
+        rec = read_record(path, **kwargs)
+        assert rec.dt == pytest.approx(dt, rel=1e-9), name
+        assert rec.npts == npts == rec.accel.shape[0], name
+        assert rec.accel.dtype == np.float64 and rec.accel.ndim == 1
+        # PROVENANCE.md gives 4 significant digits, so 2e-4 relative is the honest tolerance.
+        assert rec.pga == pytest.approx(pga, rel=2e-4), name
+        assert (rec.units_in_file, rec.units_source, rec.source) == (units, source, str(path))
+        if source == "file header":
+            assert read_record(path, units=units).pga == rec.pga  # the same units: fine
+            with pytest.raises(ValueError, match=rf"{name}: the file states units g .* but "
+                                                 r"units='m/s2' was given"):
+                read_record(path, units="m/s2")
+        else:
+            with pytest.raises(ValueError, match=rf"{name}: the units of the acceleration "
+                                                 r"are not stated in the file; pass units="):
+                read_record(path)
+    rec = read_record(ground_motions_dir / "IELC180.AT2")
     assert rec.accel[0] == pytest.approx(-0.6403182e-02 * G_STANDARD, rel=1e-12)
     assert rec.accel[-1] == pytest.approx(0.9459335e-04 * G_STANDARD, rel=1e-12)
-    assert rec.pga == pytest.approx(3.068, rel=1e-3)
     peak = int(np.argmax(np.abs(rec.accel)))
-    assert rec.time[peak] == pytest.approx(2.15)
-    assert rec.accel[peak] < 0
-    assert "EL CENTRO ARRAY #9" in rec.description
-    assert "NPTS=  4000" in rec.description
+    assert rec.time[peak] == pytest.approx(2.15) and rec.accel[peak] < 0
+    assert "EL CENTRO ARRAY #9" in rec.description and "NPTS=  4000" in rec.description
+    chichi = read_record(ground_motions_dir / "ChiChi.dat", format="two_column")
+    assert chichi.units_in_file == "g" and "TCU045" in chichi.description
 
 
-def test_header_units_override_and_format_args():
-    path = shared_file("IELC180.AT2")
-    in_g = read_record(path)
-    as_si = read_record(path, units="m/s2", format="at2")
-    assert as_si.units_in_file == "m/s2"
-    np.testing.assert_allclose(in_g.accel, as_si.accel * G_STANDARD, rtol=1e-15)
-    # ChiChi.dat states Accel[g] in its text header; explicit units override it.
-    chichi = read_record(shared_file("ChiChi.dat"), format="two_column")
-    assert chichi.units_in_file == "g"
-    assert "TCU045" in chichi.description
-    assert read_record(shared_file("ChiChi.dat"), units="m/s^2").pga == pytest.approx(0.361)
+# --- units: stated, given, refused --------------------------------------------------------
 
 
-def test_headerless_two_column_requires_units():
+def test_stated_units_win_and_contradictions_are_refused(tmp_path):
+    """A file that states g, read with units='m/s2', is refused naming both (it used to be
+    read 9.81 times too weak); the same units given again are fine."""
+    rec = synthetic(seed=1, duration=2.0)
+    at2 = write_at2(tmp_path / "a.AT2", rec)
+    two = write_two_column(tmp_path / "b.dat", rec)
+    for path, stated in ((at2, "'UNITS OF G'"), (two, "'Accel[g]'")):
+        base = read_record(path)
+        assert base.units_in_file == "g" and base.units_source == "file header"
+        np.testing.assert_allclose(base.accel, rec.accel, rtol=1e-9, atol=1e-12)
+        same = read_record(path, units="g")
+        assert same.units_source == "file header" and np.array_equal(same.accel, base.accel)
+        with pytest.raises(ValueError) as info:
+            read_record(path, units="m/s2")
+        msg = str(info.value)
+        assert f"{path.name}: the file states units g ({stated} in its header)" in msg
+        assert "units='m/s2' was given; omit units= or pass units='g'" in msg
+    si = write_two_column(tmp_path / "si.dat", rec, header="t [s]  a [m/s2]", in_g=False)
+    with pytest.raises(ValueError, match=r"states units m/s2 .* but units='g' was given"):
+        read_record(si, units="g")
+
+
+def test_units_source(tmp_path):
+    rec = synthetic(seed=2, duration=1.0)
+    quiet = write_at2(tmp_path / "quiet.AT2", rec, units_line="NO UNITS STATED HERE")
+    assert read_record(quiet).units_source == "AT2 default"
+    assert read_record(quiet).units_in_file == "g"
+    as_si = read_record(quiet, units="m/s2")  # the header says nothing: the units given
+    assert (as_si.units_in_file, as_si.units_source) == ("m/s2", "given")
+    bare = write_two_column(tmp_path / "bare.dat", rec, header="", in_g=False)
+    got = read_record(bare, units="m/s2")
+    assert (got.units_in_file, got.units_source) == ("m/s2", "given")
+    np.testing.assert_allclose(got.accel, rec.accel, rtol=1e-9)
+    both = write(tmp_path, "both.dat", "Accel[g] Units: m/s2\n0 0.1\n0.01 0.2\n")
+    with pytest.raises(ValueError, match=r"conflicting units .*; pass units='g' or units="):
+        read_record(both)
+    assert read_record(both, units="m/s2").units_source == "given"
+    assert Record(dt=0.01, accel=[0.0, 1.0]).units_source == ""
+    assert "units_source='given'" in repr(got)
+
+
+def test_headerless_two_column_requires_units(tmp_path):
+    path = write_two_column(tmp_path / "headerless.dat", synthetic(duration=1.0), header="")
     with pytest.raises(ValueError, match=r"units='g' or units='m/s2'") as info:
-        read_record(shared_file("Northridge_Sylmar_County.dat"))
-    assert "Northridge_Sylmar_County.dat" in str(info.value)
+        read_record(path)
+    assert "headerless.dat" in str(info.value)
 
 
-def test_record_is_frozen_and_read_only():
-    rec = read_record(shared_file("elCentro.AT2"))
+def test_record_is_frozen_and_read_only(tmp_path):
+    rec = read_record(write_at2(tmp_path / "r.AT2", synthetic(duration=1.0)))
     with pytest.raises(ValueError):
         rec.accel[0] = 1.0
     with pytest.raises(AttributeError):
         rec.dt = 0.5  # type: ignore[misc]
+
+
+def test_three_layouts_read_back_the_same_record(tmp_path):
+    rec = synthetic(seed=3, dt=0.005, duration=2.0)
+    reads = [
+        read_record(write_at2(tmp_path / "r.AT2", rec, per_line=8)),
+        read_record(write_two_column(tmp_path / "r.dat", rec)),
+        read_record(write_one_column(tmp_path / "r.txt", rec), units="g", dt=0.005),
+    ]
+    for got in reads:
+        assert got.dt == pytest.approx(0.005, rel=1e-12) and got.npts == rec.npts
+        np.testing.assert_allclose(got.accel, rec.accel, rtol=1e-8, atol=1e-12)
+
+
+# --- the common time step of records -------------------------------------------------------
+
+
+def test_common_time_step():
+    assert common_time_step([0.005, 0.01, 0.02]) == 0.005
+    assert common_time_step([0.02, 0.01]) == 0.01
+    assert common_time_step([0.01, 0.004]) == 0.002
+    # float steps of two-column files count as the nominal ones; a step that is the
+    # common one comes back unchanged
+    assert common_time_step([0.019999999999999997, 0.02]) == 0.019999999999999997
+    assert common_time_step([0.1 + 0.2, 0.1]) == pytest.approx(0.1)
+    assert common_time_step([1 / 3]) == 1 / 3
+    with pytest.raises(ValueError) as info:
+        common_time_step([0.01, 0.0073], names=["a.AT2", "b.dat"])
+    msg = str(info.value)
+    assert "a.AT2 dt = 0.01 s, b.dat dt = 0.0073 s" in msg
+    assert "no common step coarser than 0.0001 s, 73 times finer" in msg
+    assert common_time_step([0.01, 0.0073], max_refinement=100) == pytest.approx(1e-4)
+    assert common_time_step([np.pi / 100]) == np.pi / 100  # one step is its own grid
+    with pytest.raises(ValueError, match="no common step coarser than"):
+        common_time_step([np.pi / 100, 0.01])
+    with pytest.raises(ValueError, match="positive and finite"):
+        common_time_step([0.01, 0.0])
+
+
+def test_on_grid_keeps_every_sample():
+    a = np.array([1.0, 3.0, -1.0, 0.5])
+    fine = on_grid(a, 4)
+    assert fine.size == 13 and np.array_equal(fine[::4], a)
+    np.testing.assert_allclose(fine[1:4], [1.5, 2.0, 2.5])
+    assert on_grid(a, 1) is not None and np.array_equal(on_grid(a, 1), a)
 
 
 # --- synthetic well-formed files ---------------------------------------------------------
@@ -344,20 +448,29 @@ def test_cache_dir_resolution(monkeypatch, tmp_path):
     assert datasets.cache_dir() == tmp_path / "home" / ".cache" / "rockjax"
 
 
-def test_download_into_cache(isolated_cache, monkeypatch):
-    source = shared_file("IELC180.AT2")
+@pytest.fixture
+def fake_el_centro(tmp_path, monkeypatch):
+    """A synthetic IELC180.AT2 (4000 samples at 0.01 s) whose SHA-256 is the expected one."""
+    folder = tmp_path / "local"
+    folder.mkdir()
+    path = write_at2(folder / "IELC180.AT2", synthetic(seed=4, dt=0.01, duration=39.99))
+    monkeypatch.setattr(datasets, "EL_CENTRO_SHA256", hashlib.sha256(path.read_bytes()).hexdigest())
+    return path
+
+
+def test_download_into_cache(isolated_cache, monkeypatch, fake_el_centro):
     calls = []
 
     def fake_download(url, dest):
         calls.append(url)
         assert Path(dest).parent == isolated_cache  # temp file next to the target
-        shutil.copyfile(source, dest)
+        dest.write_bytes(fake_el_centro.read_bytes())
 
     monkeypatch.setattr(datasets, "_download", fake_download)
     rec = datasets.el_centro()
     assert calls == [datasets.EL_CENTRO_URL]
     assert rec.dt == 0.01 and rec.npts == 4000 and rec.units_in_file == "g"
-    assert rec.pga == pytest.approx(0.3129 * G_STANDARD, rel=2e-4)
+    assert rec.pga == pytest.approx(3.0, rel=1e-8)
     cached = isolated_cache / "IELC180.AT2"
     assert rec.source == str(cached)
     assert sorted(p.name for p in isolated_cache.iterdir()) == ["IELC180.AT2"]
@@ -366,8 +479,8 @@ def test_download_into_cache(isolated_cache, monkeypatch):
     assert len(calls) == 1
 
 
-def test_local_argument_and_env_var(isolated_cache, monkeypatch):
-    source = shared_file("IELC180.AT2")
+def test_local_argument_and_env_var(isolated_cache, monkeypatch, fake_el_centro):
+    source = fake_el_centro
     assert datasets.el_centro_path(local=source) == source
     assert datasets.el_centro_path(local=source.parent) == source  # a directory works too
     assert datasets.el_centro(local=str(source)).npts == 4000
@@ -381,9 +494,9 @@ def test_local_missing(isolated_cache, tmp_path):
         datasets.el_centro_path(local=tmp_path / "nowhere.AT2")
 
 
-def test_sha_mismatch_local(isolated_cache, tmp_path):
+def test_sha_mismatch_local(isolated_cache, tmp_path, fake_el_centro):
     modified = tmp_path / "IELC180.AT2"
-    data = bytearray(shared_file("IELC180.AT2").read_bytes())
+    data = bytearray(fake_el_centro.read_bytes())
     data[-3] = ord("9") if data[-3] != ord("9") else ord("8")
     modified.write_bytes(bytes(data))
     with pytest.raises(ValueError, match="SHA-256 mismatch") as info:

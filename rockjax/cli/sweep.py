@@ -3,10 +3,15 @@
 Every combination runs through `rockjax.simulate_batch(summary_only=True)`, one batch per
 structure; the stages are: check the inputs, load structures and records, run, write the
 CSV, then plot and report.
+
+Records may differ in time step and length: they run together on their common time step
+(each resampled exactly), and each run ends at its own record's end plus `--tail`. The
+units of each record come from its file, or from `FILE:UNITS` / a `--units` after it.
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import dataclasses
 import json
@@ -18,19 +23,26 @@ import numpy as np
 
 import rockjax
 from rockjax import _plotting
+from rockjax._batch import DEFAULT_TAIL
+from rockjax._records import common_time_step, record_format
 
 from ._common import (
     _check_out_dir,
     _check_png,
     _check_r,
-    _check_t1_steps,
     _first_line,
     _load_structure,
+    _MAX_STEPS,
     _positive_float,
     _positive_int,
     _scales,
     add_model_arguments,
+    cli_message,
     CLIError,
+    model_info,
+    model_line,
+    record_info,
+    split_record_units,
 )
 
 SWEEP_COLUMNS = (
@@ -42,11 +54,25 @@ SWEEP_COLUMNS = (
     "n_impacts",
     "status",
     "t_overturn_s",
+    "t_end_s",
+    "record_file",
+    "record_units",
+    "record_units_from",
+    "record_dt_s",
+    "record_npts",
+    "record_duration_s",
+    "record_pga_g",
+    "model",
+    "impact",
+    "r",
+    "method",
 )
 #: the Summary fields kept per run, each reshaped to (n_scales, n_records)
-_FIELDS = ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn")
+_FIELDS = ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn", "t_end")
 #: integer status code -> name ("completed", "overturned", ...)
 _STATUS_NAMES = {code: name for name, code in rockjax.STATUS.items()}
+#: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
+RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
 
 
 # ------------------------------------------------------------------------------ parser
@@ -57,15 +83,35 @@ def add_parser(subparsers):
         description="Run every combination of structure, scale factor and ground-motion "
         "record with the fast batched integrator (rockjax.simulate_batch, summaries only) "
         "and write one CSV row per run: structure, record, scale, peak_u_m, peak_uplift_m, "
-        "n_impacts, status, t_overturn_s. The records (PEER AT2, two columns t a, or one "
-        "column with --record-dt) must share one time step; shorter ones are padded with "
-        "zeros.",
+        "n_impacts, status, t_overturn_s, t_end_s, then what produced it (the record's file, "
+        "units and where they came from, dt, points, duration, PGA; model, impact rule, r, "
+        "method). Records (PEER AT2, two columns t a, or one column with --record-dt) may "
+        "differ in time step and length: they run on their common step, each resampled "
+        "exactly, and each run ends at its own record's end plus --tail.",
     )
+    w.set_defaults(inputs=None)
     _add_input_arguments(w)
     _add_run_arguments(w)
     _add_output_arguments(w)
     w.set_defaults(func=run)
     return w
+
+
+class _InOrder(argparse.Action):
+    """Keep --record and --units in the order given: (dest, value) pairs in `inputs`."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        namespace.inputs = [*(namespace.inputs or []), (self.dest, values)]
+
+
+def _tail(text):
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--tail must be a number, got {text!r}") from None
+    if not (math.isfinite(x) and x >= 0):
+        raise argparse.ArgumentTypeError(f"--tail must be >= 0 and finite, got {text!r}")
+    return x
 
 
 def _add_input_arguments(w):
@@ -78,17 +124,27 @@ def _add_input_arguments(w):
     )
     w.add_argument(
         "--record",
-        action="append",
+        action=_InOrder,
         required=True,
-        metavar="FILE",
-        help="ground-motion record file, repeatable (at least one)",
+        metavar="FILE[:UNITS]|DIR",
+        help="ground-motion record file, repeatable (at least one); FILE:g or FILE:m/s2 "
+        "states its units; a folder takes every record file in it (.AT2, .dat, .txt, "
+        ".csv, .acc), sorted by name",
     )
-    w.add_argument("--units", choices=["g", "m/s2"], help="units of the records' values")
+    w.add_argument(
+        "--units",
+        action=_InOrder,
+        choices=["g", "m/s2"],
+        help="units of the --record just before it (before any --record: of every record "
+        "that states no units of its own). A file that states its units (AT2 'UNITS OF "
+        "G', a column title 'Accel[g]') is read in them; units given that contradict them "
+        "are refused",
+    )
     w.add_argument(
         "--record-dt",
         type=_positive_float("--record-dt"),
         metavar="DT",
-        help="sample step [s] of one-column records",
+        help="sample step [s] of the one-column records (the others state their own)",
     )
     w.add_argument(
         "--scales",
@@ -101,12 +157,21 @@ def _add_input_arguments(w):
 
 
 def _add_run_arguments(w):
-    """--t1, --model, --method, --substeps, --r, --impact."""
+    """--tail, --t1, --model, --method, --substeps, --r, --impact."""
+    w.add_argument(
+        "--tail",
+        type=_tail,
+        default=DEFAULT_TAIL,
+        metavar="S",
+        help=f"free vibration [s] after each record's end (default {DEFAULT_TAIL:g}); "
+        "each run ends at its own record's end plus S, so shorter records are never "
+        "padded with zeros",
+    )
     w.add_argument(
         "--t1",
         type=_positive_float("--t1"),
         metavar="T",
-        help="end time [s] (default: the longest record's length)",
+        help="stop every run at T [s] at the latest (default: no cap)",
     )
     add_model_arguments(
         w,
@@ -124,8 +189,9 @@ def _add_run_arguments(w):
         type=_positive_int("--substeps"),
         default=4,
         metavar="N",
-        help="RK4 steps per record interval (default 4: peak |u| within about 2e-5 of a "
-        "tight reference on El Centro scaled 0.1-2; 2 is twice as fast, within 4e-4)",
+        help="RK4 steps per step of the records' common grid (default 4: peak |u| within "
+        "about 2e-5 of a tight reference on El Centro scaled 0.1-2; 2 is twice as fast, "
+        "within 4e-4)",
     )
 
 
@@ -181,23 +247,112 @@ def _sweep_structures(paths):
     return structures, labels
 
 
-def _sweep_records(paths, units, dt):
-    """The records as one GroundMotion (accel (n_records, n_samples), zero-padded)."""
-    recs = []
-    for path in paths:
+@dataclasses.dataclass
+class _Spec:
+    """One record to read: its path, the units given for it (None: the file's own, or
+    the default --units), and the --record folder it came from (None: named itself)."""
+
+    path: str
+    units: str | None = None
+    folder: str | None = None
+
+
+def _record_specs(inputs):
+    """(the --record values in order, with their units, the --units given before any
+    --record): FILE:UNITS, or a --units right after its --record."""
+    specs, default = [], None
+    for kind, value in inputs or []:
+        if kind == "record":
+            path, units = split_record_units(value)
+            specs.append(_Spec(path, units))
+        elif not specs:
+            if default is not None:
+                raise CLIError("--units: given twice before the first --record")
+            default = value
+        elif specs[-1].units is not None:
+            raise CLIError(
+                f"--units {value}: the --record before it, {specs[-1].path}, already has "
+                f"units {specs[-1].units}"
+            )
+        else:
+            specs[-1].units = value
+    return specs, default
+
+
+def _folder_files(spec):
+    """(the record files of a --record folder, sorted, as specs; the names skipped)."""
+    folder = pathlib.Path(spec.path)
+    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
+    taken = [p for p in files if p.suffix.lower() in RECORD_SUFFIXES]
+    skipped = [p.name for p in files if p.suffix.lower() not in RECORD_SUFFIXES]
+    if not taken:
+        raise CLIError(
+            f"--record {spec.path}: no record files in this folder (looked for "
+            f"{', '.join(RECORD_SUFFIXES)}; found {', '.join(skipped) or 'nothing'})"
+        )
+    return [_Spec(str(p), spec.units, spec.path) for p in taken], skipped
+
+
+def _expand_folders(specs):
+    """Folders replaced by their record files; a file also named itself takes the units
+    given there. Returns (specs, {folder: names skipped})."""
+    named = {}
+    for spec in specs:
+        if not pathlib.Path(spec.path).is_dir():
+            key = pathlib.Path(spec.path).resolve()
+            if key in named:
+                raise CLIError(f"--record {spec.path}: given twice")
+            named[key] = spec
+    out, skipped, seen = [], {}, set()
+    for spec in specs:
+        if pathlib.Path(spec.path).is_dir():
+            files, skipped[spec.path] = _folder_files(spec)
+        else:
+            files = [spec]
+        for f in files:
+            key = pathlib.Path(f.path).resolve()
+            if key in seen:
+                continue
+            seen.add(key)
+            own = named.get(key)
+            out.append(f if own is None else dataclasses.replace(own, folder=f.folder))
+    return out, skipped
+
+
+def _read_records(specs, default_units, record_dt):
+    """The records, read with the units given for each (else --units before any
+    --record, else the file's) and --record-dt for the one-column ones; errors in CLI
+    syntax."""
+    records = []
+    for spec in specs:
+        units = spec.units or default_units
         try:
-            recs.append(rockjax.read_record(path, units=units, dt=dt))
+            one_col = record_dt is not None and record_format(spec.path) == "one_column"
+            dt = record_dt if one_col else None
+            records.append(rockjax.read_record(spec.path, units=units, dt=dt))
         except (ValueError, OSError) as e:
-            raise CLIError(f"--record: {_first_line(e)}") from None
-    dts = [float(r.dt) for r in recs]
-    if any(not math.isclose(d, dts[0], rel_tol=1e-6) for d in dts):
-        detail = ", ".join(f"{pathlib.Path(p).name} dt = {d:g} s" for p, d in zip(paths, dts))
-        raise CLIError(f"--record: the records must share one time step, got {detail}")
-    n = max(r.accel.size for r in recs)
-    accel = np.zeros((len(recs), n))
-    for i, r in enumerate(recs):
-        accel[i, : r.accel.size] = np.asarray(r.accel)
-    return rockjax.GroundMotion(dt=dts[0], accel=accel)
+            hint = ""
+            if spec.folder is not None and "units" in str(e):
+                hint = (
+                    f" (a file of --record {spec.folder}: give its units with --record "
+                    f"{spec.path}:g or :m/s2)"
+                )
+            raise CLIError(f"--record: {cli_message(_first_line(e))}{hint}") from None
+    return records
+
+
+def _sweep_records(args):
+    """(records, labels, {folder: files skipped}) of the --record/--units arguments; the
+    records' common time step is checked here (a one-line error when there is none)."""
+    specs, default_units = _record_specs(args.inputs)
+    specs, skipped = _expand_folders(specs)
+    records = _read_records(specs, default_units, args.record_dt)
+    labels = _unique_labels([s.path for s in specs])
+    try:
+        common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
+    except ValueError as e:
+        raise CLIError(f"--record: {cli_message(_first_line(e))}") from None
+    return records, labels, skipped
 
 
 # --------------------------------------------------------------------------------- run
@@ -208,9 +363,12 @@ class _Sweep:
 
     structures: list
     struct_labels: list[str]
+    records: list
     rec_labels: list[str]
     scales: np.ndarray
-    t1: float
+    tail: float
+    t1: float | None
+    skipped: dict = dataclasses.field(default_factory=dict)
     results: list[dict] = dataclasses.field(default_factory=list)
     wall: float = 0.0
 
@@ -221,6 +379,27 @@ class _Sweep:
     @property
     def runs(self):
         return f"{self.n_runs} run{'s' if self.n_runs != 1 else ''}"
+
+    @property
+    def grid_dt(self):
+        """The records' common time step [s]."""
+        return common_time_step([r.dt for r in self.records])
+
+    @property
+    def t_ends(self):
+        """Each record's end of run [s]: its end plus the tail, capped at --t1."""
+        ends = [r.dt * (r.npts - 1) + self.tail for r in self.records]
+        return [e if self.t1 is None else min(e, self.t1) for e in ends]
+
+    def record_infos(self):
+        """`record_info` of each record, with its label and end of run."""
+        infos = []
+        for lab, rec, t_end in zip(self.rec_labels, self.records, self.t_ends):
+            info = {"label": lab, **record_info(rec), "t_end_s": t_end}
+            for key in ("scale", "scaled_pga_g"):  # the scales are the sweep's
+                info.pop(key)
+            infos.append(info)
+        return infos
 
     def status_counts(self):
         counts = {name: 0 for name in rockjax.STATUS}
@@ -238,7 +417,18 @@ class _Sweep:
         }
 
 
-def _run_batches(args, sweep, gm):
+def _check_run_length(sweep):
+    """A one-line error naming --tail, rather than numpy's size error, for absurd runs."""
+    n = max(sweep.t_ends) / sweep.grid_dt
+    if not n <= _MAX_STEPS:
+        raise CLIError(
+            f"--tail {sweep.tail:g} s makes runs of {n:.3g} steps of the records' common grid "
+            f"({sweep.grid_dt:g} s), more than {_MAX_STEPS:,}; shorten --tail or cap the runs "
+            "with --t1"
+        )
+
+
+def _run_batches(args, sweep):
     """One `simulate_batch` per structure over every (scale, record); fills sweep.results."""
     n_s, n_r = len(sweep.scales), len(sweep.rec_labels)
     scale_b = np.repeat(sweep.scales, n_r)  # scale-major: run k is scale k // n_r, record k % n_r
@@ -247,8 +437,9 @@ def _run_batches(args, sweep, gm):
     for s in sweep.structures:
         out = rockjax.simulate_batch(
             s,
-            gm,
+            sweep.records,
             sweep.t1,
+            tail=sweep.tail,
             scale=scale_b,
             record=record_b,
             r=args.r,
@@ -263,28 +454,42 @@ def _run_batches(args, sweep, gm):
     sweep.wall = time.perf_counter() - t0
 
 
-def _csv_rows(sweep):
+def _csv_rows(args, sweep):
+    infos, model = sweep.record_infos(), model_info(args)
+    r = model["r"] if isinstance(model["r"], str) else repr(float(model["r"]))
     for lab_s, res in zip(sweep.struct_labels, sweep.results):
         for i, scale in enumerate(sweep.scales):
-            for j, lab_r in enumerate(sweep.rec_labels):
+            for j, info in enumerate(infos):
                 t_ov = float(res["t_overturn"][i, j])
                 yield [
                     lab_s,
-                    lab_r,
+                    info["label"],
                     repr(float(scale)),
                     repr(float(res["peak_u"][i, j])),
                     repr(float(res["peak_uplift"][i, j])),
                     int(res["n_impacts"][i, j]),
                     _STATUS_NAMES[int(res["status"][i, j])],
                     repr(t_ov) if math.isfinite(t_ov) else "",
+                    repr(float(res["t_end"][i, j])),
+                    info["file"],
+                    info["units_in_file"],
+                    info["units_from"] or "",
+                    repr(info["dt_s"]),
+                    info["n_points"],
+                    repr(info["duration_s"]),
+                    repr(info["pga_g"]),
+                    model["model"],
+                    model["impact"],
+                    r,
+                    args.method,
                 ]
 
 
-def _write_sweep_csv(path, sweep):
-    with open(path, "w", newline="") as f:
+def _write_sweep_csv(args, sweep):
+    with open(args.out, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(SWEEP_COLUMNS)
-        w.writerows(_csv_rows(sweep))
+        w.writerows(_csv_rows(args, sweep))
 
 
 # ---------------------------------------------------------------------------- outputs
@@ -395,26 +600,59 @@ def _print_json(args, sweep, counts, fractions):
         "status_counts": counts,
         "wall_time_s": wall,
         "runs_per_s": n_runs / wall if wall > 0 else None,
+        "tail_s": sweep.tail,
         "t1": sweep.t1,
+        "grid_dt_s": sweep.grid_dt,
         "model": args.model,
+        "model_info": model_info(args),
         "method": args.method,
+        "substeps": args.substeps if args.method == "rk4" else None,
         "csv": str(args.out),
         "plot": args.plot,
         "structures": sweep.struct_labels,
         "records": sweep.rec_labels,
+        "record_info": sweep.record_infos(),
+        "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
         "fraction_overturned": fractions,
     }
     print(json.dumps(out))
 
 
+def _print_inputs(args, sweep):
+    """What was read and what produced the results: records, their grid, the model."""
+    for folder, names in sweep.skipped.items():
+        taken = sum(
+            1 for r in sweep.records if pathlib.Path(r.source).parent == pathlib.Path(folder)
+        )
+        note = f"; skipped (not record files): {', '.join(names)}" if names else ""
+        print(f"folder        {folder}: {taken} record file(s) taken{note}")
+    for i in sweep.record_infos():
+        src = f" ({i['units_from']})" if i["units_from"] else ""
+        print(
+            f"record        {i['label']}: units {i['units_in_file']}{src}, dt {i['dt_s']:g} s, "
+            f"{i['n_points']} points, {i['duration_s']:g} s, PGA {i['pga_g']:.4g} g, "
+            f"run to {i['t_end_s']:g} s"
+        )
+    cap = "" if sweep.t1 is None else f", at most t1 = {sweep.t1:g} s"
+    dts = sorted({r.dt for r in sweep.records})
+    print(
+        f"grid          {sweep.grid_dt:g} s (record steps {', '.join(f'{d:g}' for d in dts)} s"
+        f", resampled exactly); each run to its record's end + tail {sweep.tail:g} s{cap}"
+    )
+    print(
+        f"model         {model_line(model_info(args))}, {args.method}"
+        + (f" ({args.substeps} substeps)" if args.method == "rk4" else "")
+    )
+
+
 def _print_report(args, sweep, counts, fractions):
     n_runs, n_s, n_r = sweep.n_runs, len(sweep.scales), len(sweep.rec_labels)
     n_over = counts["overturned"]
+    _print_inputs(args, sweep)
     print(
         f"sweep         {sweep.runs}: {len(sweep.structures)} structure(s) x {n_r} record(s) x "
-        f"{n_s} scale(s), t1 = {sweep.t1:g} s, {args.model} model, {args.method}"
-        + (f" ({args.substeps} substeps)" if args.method == "rk4" else "")
+        f"{n_s} scale(s)"
     )
     print(
         f"time          {sweep.wall:.3g} s ({n_runs / sweep.wall:.3g} runs/s, compilation included)"
@@ -450,27 +688,31 @@ def run(args):
     """structures x scales x records through `simulate_batch(summary_only=True)`: CSV, plot."""
     _check_args(args)
     structures, struct_labels = _sweep_structures(args.structure)
-    gm = _sweep_records(args.record, args.units, args.record_dt)
-    t1 = args.t1 if args.t1 is not None else float(gm.duration)
-    _check_t1_steps(t1, float(gm.dt), "record steps")
+    records, rec_labels, skipped = _sweep_records(args)
     sweep = _Sweep(
         structures=structures,
         struct_labels=struct_labels,
-        rec_labels=_unique_labels(args.record),
+        records=records,
+        rec_labels=rec_labels,
         scales=np.asarray(args.scales, float),
-        t1=t1,
+        tail=args.tail,
+        t1=args.t1,
+        skipped=skipped,
     )
-    _run_batches(args, sweep, gm)
-    _write_sweep_csv(args.out, sweep)
+    _check_run_length(sweep)
+    _run_batches(args, sweep)
+    _write_sweep_csv(args, sweep)
     counts, fractions = sweep.status_counts(), sweep.fractions_overturned()
     if args.plot:
+        end = "its end + tail" if args.t1 is None else f"min(end + tail, {args.t1:g} s)"
         fig = plot_sweep(
             sweep.scales,
             sweep.results,
             u_overturn=[float(s.u_overturn) for s in structures],
             structures=struct_labels,
             records=sweep.rec_labels,
-            title=f"{sweep.runs} to t1 = {t1:g} s, {args.model} model, {args.method}",
+            title=f"{sweep.runs}, each record to {end}, {args.model} model, "
+            f"impact rule {args.impact}, {args.method}",
         )
         fig.savefig(args.plot, dpi=150)
     if args.json:

@@ -142,7 +142,8 @@ def _solve_segment(scene, cfg, c, ts, ts_pad, t1):
     n = ts.shape[0]
     i0 = jnp.searchsorted(ts, c.t, side="left")
     win = jax.lax.dynamic_slice(ts_pad, (i0,), (WINDOW,))
-    seg_t1 = jnp.where(i0 + WINDOW < n, win[-1], t1)
+    # output times past t1 (a batch member that ends before the others) are not solved
+    seg_t1 = jnp.minimum(jnp.where(i0 + WINDOW < n, win[-1], t1), t1)
     event = dfx.Event(lambda t, y, args, **kw: jnp.min(scene.values(t, y, args)) + 1e-30,
                       root_finder=EventBisection(), direction=False)
     # A condition that restarted the segment starts at exactly 0 and grows; the tiny

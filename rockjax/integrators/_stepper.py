@@ -282,11 +282,33 @@ def _first_direction(table, rec, scale):
     return jnp.where(first == 0, 1.0, first)
 
 
-def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: StepperConfig):
+def _step_length(st, t0, dt_rec, t1):
+    """(carry, length [s] of the step from `t0`): `min(dt_rec, t1 - t0)`. With one end per
+    member (`t1` of shape (N,)) a member whose end is reached is marked done first (its
+    record is over: nothing more counts), and keeps a dummy full step."""
+    if jnp.ndim(t1) == 0:
+        return st, jnp.minimum(dt_rec, t1 - t0)
+    left = t1 - t0
+    # float64: as the grid's ceil(t1 / dt - 1e-9); float32: steps under 1e-3 dt are dropped
+    tol = (1e-9 if left.dtype == jnp.float64 else 1e-3) * dt_rec
+    alive = left > tol
+    st = eqx.tree_at(lambda m: m.tally.done, st, st.tally.done | ~alive)
+    return st, jnp.where(alive, jnp.minimum(dt_rec, left), dt_rec)
+
+
+def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: StepperConfig,
+        lengths=None):
     """Integrate a batch with `model`. Per-member inputs (`rec`, `scale`, `u0` [m], `v0`
     [m/s], `r`, and the fields of `structure`) have shape `(N,)` or `()`; `table` is
     `(n_records, n_samples + pad)` [m/s²], zero beyond each record's end; `dt_rec` [s] the
     record step (the output grid step for a free vibration) and `t1` [s] the end time.
+
+    `t1` of shape `(N,)` gives each member its own end: a member stops there (its last
+    step shortened to end exactly at its `t1`) and nothing after it counts: no impacts,
+    peaks or status; its state is held on the rest of the grid. `lengths` (shape
+    `(n_records,)`, optional) are the records' sample counts in `table`: the ground
+    acceleration is zero after a record's last sample (as `GroundMotion` defines it)
+    rather than falling linearly to the zero padding over one step.
 
     Returns a dict: peak_u, peak_uplift (the largest uplift seen at piece ends: the caller
     applies `model.peak_uplift`, outside the compiled loop, so that summaries and full
@@ -309,16 +331,17 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
     tally = per_member(lambda s_, y_, m_, f_: tally_start(model, s_, y_, m_, n_store, f_), s)(
         y, mode, unstable)
     st = Member(y=y, mode=mode, tally=tally, hprop=jnp.full((N,), jnp.inf, y.dtype))
-    n_rec = table.shape[-1]
+    n_tab = table.shape[-1]
+    n_rec = n_tab if lengths is None else jnp.asarray(lengths)[rec]
     sub = cfg.substeps
 
     def outer(st, k):
         t0 = k * dt_rec
-        hk = jnp.minimum(dt_rec, t1 - t0)
+        st, hk = _step_length(st, t0, dt_rec, t1)
         if cfg.forced:
             # right limit at the interval start (the record is zero after its end)
             a_lo = jnp.where(k < n_rec - 1, table[rec, k], 0.0) * scale
-            a_hi = jnp.where(k + 1 <= n_rec - 1, table[rec, jnp.minimum(k + 1, n_rec - 1)], 0.0)
+            a_hi = jnp.where(k + 1 <= n_rec - 1, table[rec, jnp.minimum(k + 1, n_tab - 1)], 0.0)
             a_hi = a_hi * scale
         else:
             a_lo = a_hi = jnp.zeros((N,), y.dtype)

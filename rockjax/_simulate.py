@@ -185,11 +185,14 @@ def _simulate_stepper(structure, excitation, t1f, ts, r, model, *, method, subst
         rtol=float(rtol), atol=float(atol),
     )
     u0, v0 = excitation.initial_state()
+    # zero forcing right after the record's last sample, as GroundMotion defines it
+    lengths = (jnp.asarray([excitation.accel.shape[-1]], jnp.int32) if excitation.forced
+               else None)
     out = _run_jit(model, structure, table, jnp.zeros((1,), jnp.int32),
                    jnp.asarray(dt_rec, dtype), jnp.asarray(scale, dtype),
                    jnp.reshape(jnp.asarray(u0, dtype), (1,)),
                    jnp.reshape(jnp.asarray(v0, dtype), (1,)), jnp.asarray(r, dtype),
-                   jnp.asarray(t1f, dtype), cfg)
+                   jnp.asarray(t1f, dtype), cfg, lengths)
     out = {k: v[0] for k, v in out.items()}
     out["peak_uplift"] = model.peak_uplift(structure, out["peak_u"], out["peak_uplift"])
     grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)

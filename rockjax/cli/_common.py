@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import pathlib
+import re
 
 import numpy as np
 
@@ -274,6 +275,54 @@ def record_line(info):
         f"dt {info['dt_s']:g} s, {info['n_points']} points, {info['duration_s']:g} s, "
         f"PGA {info['pga_g']:.4g} g x scale {info['scale']:g} = {info['scaled_pga_g']:.4g} g"
     )
+
+
+# ------------------------------------------------------- API messages in CLI syntax
+#: keyword arguments of the API named in messages, and the CLI option that sets each
+_API_OPTIONS = {"units": "--units", "dt": "--record-dt", "scale": "--scale", "t1": "--t1",
+                "tail": "--tail"}
+_API_KEYWORD_RE = re.compile(
+    r"(?<![\w.\-])(units|dt|scale|t1|tail)=(?:'([^']*)'|\"([^\"]*)\"|(<[^>]*>|[^\s,;)'\"]+))?"
+)
+#: whole phrases about read_record's format= (the CLI detects the layout)
+_FORMAT_PHRASES = (
+    ("pass format='at2', 'two_column' or 'one_column'",
+     "a record file is PEER AT2, two columns (t, a) or one column (a, with --record-dt)"),
+    ("pass format= if this is not an AT2 file", "a file named .AT2 is read as PEER AT2"),
+)
+
+
+def cli_message(text):
+    """A message of the Python API in command-line syntax: `units='g'` -> `--units g`,
+    `dt=0.02` / `dt=<time step in s>` / `dt=` -> `--record-dt ...`, likewise `scale=`,
+    `t1=`, `tail=`; "was passed" -> "was given"; read_record's `format=` advice becomes a
+    description of the layouts the CLI detects. Other text is unchanged."""
+    text = str(text)
+    for api, cli in _FORMAT_PHRASES:
+        text = text.replace(api, cli)
+
+    def option(m):
+        value = next((g for g in m.groups()[1:] if g), None)
+        flag = _API_OPTIONS[m.group(1)]
+        return f"{flag} {value}" if value else flag
+
+    text = _API_KEYWORD_RE.sub(option, text)
+    return text.replace(" was passed", " was given")
+
+
+#: the units a `--record FILE:UNITS` suffix may name (case-insensitive), as read_record
+_UNIT_SUFFIXES = {"g": "g", "m/s2": "m/s2", "m/s^2": "m/s2", "mps2": "m/s2", "m/s**2": "m/s2"}
+
+
+def split_record_units(text):
+    """(path, units or None) of a `--record` value: a trailing `:g` or `:m/s2` (also
+    `:m/s^2`, `:mps2`) names the record's units; any other colon belongs to the path, and
+    so does the suffix when the whole text names an existing file."""
+    head, sep, tail = str(text).rpartition(":")
+    units = _UNIT_SUFFIXES.get(tail.strip().lower()) if sep else None
+    if units is None or not head or pathlib.Path(text).exists():
+        return str(text), None
+    return head, units
 
 
 def _derived_table(derived):

@@ -16,10 +16,12 @@ from ._common import (
     _check_r,
     _check_t1_steps,
     _finite_float,
+    _first_line,
     _load_structure,
     _positive_float,
     _write_csv,
     add_model_arguments,
+    cli_message,
     CLIError,
     model_info,
     model_line,
@@ -97,7 +99,10 @@ def _build_excitation(args, s):
             )
         excitation = rockjax.FreeVibration(args.u0, args.v0)
         return excitation, None, {"type": "free_vibration", "u0": args.u0, "v0": args.v0}
-    rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
+    try:
+        rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
+    except ValueError as e:
+        raise CLIError(cli_message(_first_line(e))) from None
     gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
     return gm, gm, {"type": "ground_motion", **record_info(rec, args.scale)}
 

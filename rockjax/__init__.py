@@ -13,7 +13,11 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from . import datasets as datasets, integrators as integrators, models as models  # noqa: E402
-from ._batch import simulate_batch as simulate_batch, Summary as Summary  # noqa: E402
+from ._batch import (  # noqa: E402
+    DEFAULT_TAIL as DEFAULT_TAIL,
+    simulate_batch as simulate_batch,
+    Summary as Summary,
+)
 from ._excitation import (  # noqa: E402
     AbstractExcitation as AbstractExcitation,
     FreeVibration as FreeVibration,
@@ -31,6 +35,7 @@ from ._pushover import (  # noqa: E402
     PushoverResult as PushoverResult,
 )
 from ._records import (  # noqa: E402
+    common_time_step as common_time_step,
     G_STANDARD as G_STANDARD,
     read_record as read_record,
     Record as Record,

@@ -6,6 +6,9 @@ Run from anywhere: ``python data/make_synthetic_traces.py``. Writes, next to thi
 rockjax simulation of the McManus (1980) column of Table 1 with a chosen foundation
 stiffness k_f and restitution r, released from u0 at rest; they are NOT measurements.
 The output is deterministic (fixed seeds), so re-running reproduces the committed files.
+
+`noisy_variant(seed, rate_hz=...)` makes more traces like ``synthetic_decay_noisy`` (same
+truth and noise, another seed or sampling rate) for tests; it writes nothing.
 """
 
 from __future__ import annotations
@@ -68,14 +71,17 @@ TRACES = {
 }
 
 
-def sample_times() -> np.ndarray:
-    """The sample times [s]: 0 .. 8 s at 200 Hz (1601 samples)."""
-    return np.arange(N_SAMPLES) / RATE_HZ
+def sample_times(rate_hz: float = RATE_HZ) -> np.ndarray:
+    """The sample times [s]: 0 .. 8 s at `rate_hz` (default 200 Hz: 1601 samples)."""
+    if rate_hz == RATE_HZ:
+        return np.arange(N_SAMPLES) / RATE_HZ
+    return np.arange(round(DURATION_S * rate_hz) + 1) / rate_hz
 
 
-def simulate_trace(k_f: float, r: float, model: str, u0: float = U0, structure=None):
+def simulate_trace(k_f: float, r: float, model: str, u0: float = U0, structure=None,
+                   rate_hz: float = RATE_HZ):
     """Noise-free (t, u, uplift) of a free-vibration run, as numpy float64 arrays."""
-    t = sample_times()
+    t = sample_times(rate_hz)
     base = rockjax.mcmanus_column() if structure is None else structure
     s = base.replace(k_f=k_f)
     res = rockjax.simulate(
@@ -86,12 +92,30 @@ def simulate_trace(k_f: float, r: float, model: str, u0: float = U0, structure=N
     return t, np.asarray(res.u, dtype=np.float64), np.asarray(res.uplift, dtype=np.float64)
 
 
+def add_noise(u, up, seed: int, noise_std_u: float, noise_std_uplift: float):
+    """(u, uplift) with Gaussian noise from numpy's default_rng(seed): u first, then uplift."""
+    rng = np.random.default_rng(seed)
+    u = u + rng.normal(0.0, noise_std_u, size=u.shape)
+    up = up + rng.normal(0.0, noise_std_uplift, size=up.shape)
+    return u, up
+
+
+def noisy_variant(seed: int, rate_hz: float = RATE_HZ, clean=None):
+    """(t, u, uplift) like ``synthetic_decay_noisy`` (its k_f, r, model and noise levels:
+    0.5 % of u0 on u) with another `seed` and/or sampling rate; `clean`: the noise-free
+    (t, u, uplift) of that rate, if already simulated (to add noise with many seeds)."""
+    spec = TRACES["synthetic_decay_noisy"]
+    if clean is None:
+        clean = simulate_trace(spec["k_f"], spec["r"], spec["model"], rate_hz=rate_hz)
+    t, u, up = clean
+    u, up = add_noise(u, up, seed, spec["noise_std_u"], spec["noise_std_uplift"])
+    return t, u, up
+
+
 def make(name: str, spec: dict) -> None:
     t, u, up = simulate_trace(spec["k_f"], spec["r"], spec["model"])
     if spec["seed"] is not None:
-        rng = np.random.default_rng(spec["seed"])
-        u = u + rng.normal(0.0, spec["noise_std_u"], size=u.shape)
-        up = up + rng.normal(0.0, spec["noise_std_uplift"], size=up.shape)
+        u, up = add_noise(u, up, spec["seed"], spec["noise_std_u"], spec["noise_std_uplift"])
     structure = rockjax.mcmanus_column().to_dict()
     structure.pop("k_f")
     truth = {

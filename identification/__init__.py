@@ -1,7 +1,9 @@
 """identification: fit k_f and r of a rocking structure to measured free-vibration traces.
 
-Built on rockjax's public API. Read a trace with `read_trace` (CSV `t,u[,uplift]`, SI
-units), fit it with `fit_decay`; the synthetic traces in `data/` (`synthetic_trace_path`,
+Built on rockjax's public API. Read a trace with `read_trace` (CSV with a header such as
+`t,u[,uplift]` in SI units, or with units such as `time_s,disp_mm`; converted to SI), fit
+it with `fit_decay` (k_f, r, and the release displacement u0 and time t0, found in the
+trace by `detect_release`); the synthetic traces in `data/` (`synthetic_trace_path`,
 `synthetic_truth`) are labelled synthetic everywhere.
 """
 
@@ -11,12 +13,20 @@ from ._fit import (
     IdentifiabilityWarning as IdentifiabilityWarning,
     OutlierWarning as OutlierWarning,
     PARAM_NAMES as PARAM_NAMES,
+    UNITS as UNITS,
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
 from ._trace import (
+    CHANNELS as CHANNELS,
     DecayTrace as DecayTrace,
+    detect_release as detect_release,
+    DroppedRowsWarning as DroppedRowsWarning,
+    LENGTH_UNITS as LENGTH_UNITS,
     read_trace as read_trace,
+    Release as Release,
     synthetic_trace_path as synthetic_trace_path,
     SYNTHETIC_TRACES as SYNTHETIC_TRACES,
     synthetic_truth as synthetic_truth,
+    TIME_UNITS as TIME_UNITS,
+    TraceError as TraceError,
 )

@@ -1,17 +1,26 @@
-r"""Fit $k_f$, $r$ (and the release state $u_0$, $t_0$) to a free-vibration decay trace.
+r"""Fit $k_f$, $r$ and the release state $u_0$, $t_0$ to a free-vibration decay trace.
 
-The model is `rockjax.simulate` of a release from $u_0$ at time $t_0$ (Eq. 1 with impacts,
-Eqs 2–3). The residuals are the differences between the simulated and the measured top
-displacement (and uplift, when the trace has that channel), scaled by the trace amplitude.
-The fit minimises $\tfrac12\|r\|^2$ in unconstrained coordinates
+The model is `rockjax.simulate` of a release from rest at $u_0$ at time $t_0$ (Eq. 1 with
+impacts, Eqs 2–3); before $t_0$ the structure is held at $u_0$. Since it is released at
+rest, the model is continuously differentiable in $t_0$ (the velocity is 0 on both sides
+of the release), and every sample is defined wherever $t_0$ lies: samples before it (a
+hold) inform $u_0$, the others all four parameters. The residuals are the differences
+between the model and the measured top displacement (and uplift, when the trace has that
+channel), scaled by the trace amplitude. The fit minimises $\tfrac12\|r\|^2$ in
+unconstrained coordinates
 
-$$z = \big(\log(k_f - k_{f,min}),\ \operatorname{logit} r,\ u_0/u_{s},\ t_0/10\,\mathrm{ms}\big),$$
+$$z = \big(\log(k_f - k_{f,min}),\ \operatorname{logit} r,\ u_0/u_{s},\
+(t_0 - t_{ref})/10\,\mathrm{ms}\big),$$
 
-where $k_{f,min} = W H_c / (2B^2)$ is the stability limit (Eq. 15), with an optax optimiser
-(default: Levenberg–Marquardt, `identification.levenberg_marquardt`), from several starts
-vectorised with `jax.vmap` (oscillatory traces have local minima in phase). Standard errors
-and correlations come from the Gauss–Newton approximation of the Fisher information at the
-optimum, $\mathrm{Cov} = \hat\sigma^2 (J^TJ)^{-1}$, with $\hat\sigma^2 = \mathrm{RSS}/(N - P)$.
+where $k_{f,min} = W H_c / (2B^2)$ is the stability limit (Eq. 15) and $t_{ref}$ the
+starting value of $t_0$ (the release found by `identification.detect_release`), with an
+optax optimiser (default: Levenberg–Marquardt, `identification.levenberg_marquardt`), from
+several starts vectorised with `jax.vmap` (oscillatory traces have local minima in phase).
+Standard errors and correlations come from the Gauss–Newton approximation of the Fisher
+information at the optimum (a sandwich over the channels, see `_uncertainty`).
+
+The compiled optimiser step takes the trace and the fixed values as arguments: a second fit
+of a trace of the same length, with the same parameters and settings, reuses it.
 """
 
 from __future__ import annotations
@@ -31,10 +40,14 @@ import optax
 import rockjax
 
 from ._optim import levenberg_marquardt
-from ._trace import DecayTrace
+from ._trace import DecayTrace, detect_release, Release, TraceError
 
 PARAM_NAMES = ("k_f", "r", "u0", "t0")
+"""The parameters `fit_decay` can fit, and fits by default."""
+UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s"}
+"""The (SI) unit of each parameter."""
 _T_SCALE = 0.01  # s, unit of t0 in the unconstrained coordinates
+_LM = levenberg_marquardt()  # the default optimiser: one instance, so compiled code is reused
 
 
 class IdentifiabilityWarning(UserWarning):
@@ -104,6 +117,8 @@ class FitResult:
       `warnings`: the messages of any `IdentifiabilityWarning` or `OutlierWarning` raised.
     - `outliers`: indices of the trace samples left out of the fit as outliers (empty if
       none); `loss`, `rms`, `sigma` and the standard errors are over the other samples.
+    - `release`: the release found in the trace (`identification.detect_release`, as
+      `Release.as_dict()`) and the t0 the fit started from or held (`t0_start_s`).
     """
 
     names: tuple
@@ -123,10 +138,14 @@ class FitResult:
     warnings: tuple
     scale: float
     outliers: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
+    release: dict = dataclasses.field(default_factory=dict)
 
     def summary(self) -> dict:
-        """A JSON-ready dict: values, standard errors, correlation, loss, converged."""
+        """A JSON-ready dict: values, standard errors, correlation, loss, converged, the
+        release, and `units` (of the parameters, `rms_residual` and `sigma`)."""
+        units = {**UNITS, "rms_residual": "m", "sigma": "m", "loss": "-"}
         return {
+            "units": units,
             "values": dict(self.values),
             "stderr": dict(self.stderr),
             "fixed": dict(self.fixed),
@@ -142,6 +161,7 @@ class FitResult:
             "identifiability": self.identifiability,
             "warnings": list(self.warnings),
             "outliers": [int(i) for i in self.outliers],
+            "release": dict(self.release),
         }
 
 
@@ -152,7 +172,7 @@ def _k_min(structure):
 def fit_decay(
     trace,
     structure=None,
-    params=("k_f", "r"),
+    params=PARAM_NAMES,
     *,
     model="simplified",
     impact="paper",
@@ -175,24 +195,31 @@ def fit_decay(
     - `structure`: the `rockjax.RockingStructure` (geometry, masses; default Table 1). Its
       `k_f` and `restitution` (Eq. 3) are the starting values of `k_f` and `r`.
     - `params`: the parameters to fit, any of `"k_f"`, `"r"`, `"u0"` (release displacement
-      [m]) and `"t0"` (release time [s]); the others are held fixed (u0 at the first
-      measured displacement, t0 at 0).
+      [m]) and `"t0"` (release time [s]); default all four. The release is found in the
+      trace (`identification.detect_release`): u0 and t0 start from it, or are held there
+      when not fitted: the first sample's displacement and time for a trace that starts at
+      the release, the plateau level and the release time for one that starts with a hold
+      or a clock offset. Holding u0 at a noisy first sample biases k_f and r.
     - `model`, `impact`: passed to `rockjax.simulate`.
-    - `initial`: dict of starting values overriding the defaults above.
+    - `initial`: dict of starting values overriding the defaults above (for a parameter
+      not in `params`: the value it is held at).
     - `starts`: number of starting points (vectorised with vmap): the first is `initial`,
       the others multiply k_f by 1/2, 2, 1/4, 4, ... and shift logit(r) by ±1.
     - `optimizer`: an optax optimiser; default `levenberg_marquardt()`. A plain optax
       optimiser (e.g. `optax.adam(1e-2)`) gets the gradient $J^Tr$.
     - `max_iter`, `tol`: iteration limit (per horizon) and relative loss-change tolerance.
-    - `horizons`: fractions of the trace fitted in turn (growing horizon), each stage
-      starting from the last: short horizons fix r and the phase before later cycles
-      refine k_f, which avoids the local minima of oscillatory fits.
+    - `horizons`: fractions of the motion after the release fitted in turn (growing
+      horizon; the samples before the release are in all of them), each stage starting
+      from the last: short horizons fix r and the phase before later cycles refine k_f,
+      which avoids the local minima of oscillatory fits.
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
     - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
       if the fit takes more than about 3 s and stderr is a terminal).
 
     **Returns:** a `FitResult`. Warns `IdentifiabilityWarning` when the trace cannot pin a
-    parameter down; never raises for a poor fit (see `converged`).
+    parameter down; never raises for a poor fit (see `converged`). Raises `TraceError` (a
+    `ValueError`) when the trace's amplitude lies beyond the structure's `u_overturn` (a
+    trace in mm read as m, say).
 
     **Outliers:** after a converged fit, the residuals of each channel (displacement, uplift) are
     compared with their robust spread, 1.4826 x the median absolute deviation (the noise
@@ -207,26 +234,26 @@ def fit_decay(
     **Example:**
 
     ```python
-    trace = identification.read_trace("decay.csv")
-    fit = identification.fit_decay(trace, rockjax.mcmanus_column(), params=("k_f", "r"))
+    path = identification.synthetic_trace_path("synthetic_decay_noisy")
+    fit = identification.fit_decay(identification.read_trace(path), rockjax.mcmanus_column())
     fit.values["k_f"], fit.stderr["k_f"]
     ```
     """
     problem = _setup(trace, structure, params, model=model, impact=impact, initial=initial,
                      starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
                      uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress)
-    transform = _Transform(problem.params, problem.values0, problem.k_min, problem.scale)
-    misfit = _Misfit(problem, transform)
-    opt = levenberg_marquardt() if optimizer is None else optax.with_extra_args_support(optimizer)
-    run_chunk = _make_run_chunk(misfit, opt)
-    run = _run_stages(problem, misfit, run_chunk, opt, transform.starting_points(problem.starts),
+    transform = _Transform(problem.params, problem.values0, problem.k_min, problem.scale,
+                           problem.t_ref)
+    model = _Model.build(problem)
+    opt = _LM if optimizer is None else optax.with_extra_args_support(optimizer)
+    run = _run_stages(problem, model, opt, transform.starting_points(problem.starts),
                       lm=optimizer is None)
-    best = _best_start(problem, run_chunk, opt, run)
-    unc = _uncertainty(problem, transform, best, run.keep)
+    best = _best_start(problem, model, opt, run)
+    unc = _uncertainty(problem, model, transform, best, run.keep)
     ident, messages = _identifiability(problem, best, unc)
     for m in messages:
         warnings.warn(m, IdentifiabilityWarning, stacklevel=2)
-    response = misfit.respond(jnp.asarray(best.z), "reverse")
+    response = _respond(model, jnp.asarray(best.z))
     msg = _outlier_message(problem, np.asarray(response.u), run.keep, unc.sigma)
     if msg is not None:
         messages.append(msg)
@@ -267,8 +294,14 @@ class _Problem:
     u_meas: np.ndarray
     up_meas: np.ndarray | None
     scale: float  # trace amplitude max |u| [m]: the unit of the residuals
-    values0: dict  # starting values of all of PARAM_NAMES
+    values0: dict  # starting (or fixed) values of all of PARAM_NAMES
     k_min: float  # stability limit of k_f (Eq. 15) [N/m]
+    release: Release  # found in the trace (detect_release)
+
+    @property
+    def t_ref(self) -> float:
+        """The starting value of t0 [s]: the origin of its unconstrained coordinate."""
+        return self.values0["t0"]
 
     @property
     def fits_uplift(self) -> bool:
@@ -276,9 +309,10 @@ class _Problem:
         return self.up_meas is not None and self.uplift_weight > 0
 
     def within(self, frac: float) -> np.ndarray:
-        """The samples of the first `frac` of the trace (boolean)."""
-        t = self.t
-        return t <= t[0] + frac * (t[-1] - t[0])
+        """The samples up to the first `frac` of the motion after the release (boolean):
+        the samples before the release (a hold) are in every horizon."""
+        t, t_rel = self.t, min(max(self.t_ref, self.t[0]), self.t[-1])
+        return t <= t_rel + frac * (t[-1] - t_rel)
 
 
 def _check_structure(structure):
@@ -342,7 +376,7 @@ def _as_trace(trace) -> DecayTrace:
                       source=str(getattr(trace, "source", "")))
 
 
-def _trace_arrays(trace: DecayTrace, params: tuple):
+def _trace_arrays(trace: DecayTrace, params: tuple, structure):
     """(t, u, uplift or None, amplitude max |u|) of the trace, checked to be fittable."""
     t = np.asarray(trace.t, float)
     u_meas = np.asarray(trace.u, float)
@@ -352,16 +386,42 @@ def _trace_arrays(trace: DecayTrace, params: tuple):
     scale = float(np.max(np.abs(u_meas)))
     if not scale > 0:
         raise ValueError("the trace's displacement is zero everywhere: nothing to fit")
+    _check_amplitude(trace, scale, float(structure.u_overturn))
     return t, u_meas, up_meas, scale
 
 
-def _starting_values(structure, u_meas, initial):
+def _check_amplitude(trace: DecayTrace, amplitude: float, u_overturn: float):
+    """TraceError when the trace's displacement lies beyond u_overturn: a structure
+    released there overturns, so the trace is most likely in other units (mm, cm).
+
+    Judged on a 5-point running median of u, so that spikes (outliers, left out by the
+    fit) do not count; the message gives the plain max |u|."""
+    u = np.pad(np.asarray(trace.u, float), 2, mode="edge")
+    smooth = np.median(np.lib.stride_tricks.sliding_window_view(u, 5), axis=1)
+    if float(np.max(np.abs(smooth))) <= u_overturn:
+        return
+    unit, frm = trace.units.get("u", "m"), trace.units_from.get("u", "")
+    msg = (f"max |u| = {amplitude:.4g} m is beyond u_overturn = {u_overturn:.4g} m of the "
+           "structure, where it would overturn")
+    if frm == "header":
+        msg += (f": the header gives u in {unit} (column {trace.columns.get('u', 'u')!r}); "
+                "check that unit and the structure")
+        raise TraceError(msg, msg + " (--structure)")
+    msg += f" (u read in {unit}, {frm or 'SI'}): is the trace in mm? "
+    raise TraceError(
+        msg + "give units in the header, such as t,u_mm, or read it with "
+        "read_trace(path, units={'u': 'mm'})",
+        msg + "give units in the header, such as t,u_mm, or pass --units u=mm",
+    )
+
+
+def _starting_values(structure, release: Release, initial):
     """(starting values of all of PARAM_NAMES, the stability limit k_min of k_f)."""
     values0 = {
         "k_f": float(structure.k_f),
         "r": float(structure.restitution),
-        "u0": float(u_meas[0]),
-        "t0": 0.0,
+        "u0": float(release.level),
+        "t0": float(release.time),
     }
     if initial is not None and not isinstance(initial, dict):
         raise ValueError(
@@ -396,13 +456,15 @@ def _setup(trace, structure, params, *, model, impact, initial, starts, max_iter
     structure = _check_structure(structure)
     params = _check_params(params)
     horizons = _check_options(starts, max_iter, model, impact, horizons, tol, uplift_weight)
-    t, u_meas, up_meas, scale = _trace_arrays(_as_trace(trace), params)
-    values0, k_min = _starting_values(structure, u_meas, initial)
+    trace = _as_trace(trace)
+    t, u_meas, up_meas, scale = _trace_arrays(trace, params, structure)
+    release = detect_release(trace)
+    values0, k_min = _starting_values(structure, release, initial)
     return _Problem(
         structure=structure, params=params, model=model, impact=impact, horizons=horizons,
         starts=starts, max_iter=max_iter, tol=tol, uplift_weight=uplift_weight, rtol=rtol,
         atol=atol, progress=progress, t=t, u_meas=u_meas, up_meas=up_meas, scale=scale,
-        values0=values0, k_min=k_min,
+        values0=values0, k_min=k_min, release=release,
     )
 
 
@@ -411,7 +473,8 @@ def _setup(trace, structure, params, *, model, impact, initial, starts, max_iter
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class _Transform:
-    """Natural parameters <-> the optimiser's unconstrained coordinates z (module docstring).
+    """Natural parameters <-> the optimiser's unconstrained coordinates z (module docstring),
+    on the Python side (floats); `_Model.decode` is the traced inverse.
 
     z holds the fitted parameters only (order `params`); the others keep `values0`.
     """
@@ -420,6 +483,7 @@ class _Transform:
     values0: dict
     k_min: float
     scale: float
+    t_ref: float
 
     def encode(self, v: dict) -> dict:
         """Natural values of all four parameters -> their z coordinates."""
@@ -427,23 +491,8 @@ class _Transform:
             "k_f": math.log(v["k_f"] - self.k_min),
             "r": math.log(v["r"] / (1.0 - v["r"])),
             "u0": v["u0"] / self.scale,
-            "t0": v["t0"] / _T_SCALE,
+            "t0": (v["t0"] - self.t_ref) / _T_SCALE,
         }
-
-    def decode(self, z) -> dict:
-        """Unconstrained z (fitted params only) -> dict of all four natural values."""
-        out = {k: jnp.asarray(self.values0[k]) for k in PARAM_NAMES}
-        for i, name in enumerate(self.params):
-            zi = z[i]
-            if name == "k_f":
-                out["k_f"] = self.k_min + jnp.exp(zi)
-            elif name == "r":
-                out["r"] = jax.nn.sigmoid(zi)
-            elif name == "u0":
-                out["u0"] = zi * self.scale
-            else:
-                out["t0"] = zi * _T_SCALE
-        return out
 
     def derivatives(self, z) -> list:
         """d(natural value)/dz of each fitted parameter at the point `z` (floats)."""
@@ -478,36 +527,81 @@ class _Transform:
 # -------------------------------------------------------- residuals, Jacobian
 
 
-class _Misfit:
-    """The simulated trace at a point z and its residuals against the measured one."""
+class _Model(eqx.Module):
+    """The model of the trace at a point z, and its residuals: the compiled part of the fit.
 
-    def __init__(self, problem: _Problem, transform: _Transform):
-        self.problem = problem
-        self.transform = transform
-        self.t_j = jnp.asarray(problem.t)
-        self.u_j = jnp.asarray(problem.u_meas)
-        self.up_j = None if problem.up_meas is None else jnp.asarray(problem.up_meas)
-        self.t_end = float(problem.t[-1])
+    The trace and the values are arrays, so that `_run_chunk` and `_respond` (compiled with
+    `eqx.filter_jit`) are reused by any trace of the same length with the same `params` and
+    settings (strings and Python numbers are static: part of the compilation key).
+    """
 
-    def respond(self, z, adjoint):
-        """`rockjax.simulate` of the release at z, on the trace times (model time t - t0)."""
-        pb = self.problem
-        v = self.transform.decode(z)
-        s = pb.structure.replace(k_f=v["k_f"])
-        ts = jnp.maximum(self.t_j - v["t0"], 0.0)
-        t1 = jnp.maximum(self.t_end - v["t0"], 1e-6)
-        return rockjax.simulate(
-            s, rockjax.FreeVibration(v["u0"]), t1, ts=ts, r=v["r"], model=pb.model,
-            impact=pb.impact, rtol=pb.rtol, atol=pb.atol, adjoint=adjoint,
+    structure: rockjax.RockingStructure
+    t: jax.Array  # sample times [s]
+    u: jax.Array  # measured displacement [m]
+    up: jax.Array | None  # measured uplift [m], None when not fitted
+    values0: dict  # starting / fixed values of all of PARAM_NAMES
+    k_min: jax.Array
+    scale: jax.Array
+    t_ref: jax.Array
+    eps: jax.Array  # spacing of the model times of the samples before the release [s]
+    uplift_weight: jax.Array
+    model: object  # a model name (static) or a model instance
+    params: tuple = eqx.field(static=True)
+    impact: str = eqx.field(static=True)
+    rtol: float = eqx.field(static=True)
+    atol: float = eqx.field(static=True)
+
+    @classmethod
+    def build(cls, pb: _Problem) -> _Model:
+        arr = jnp.asarray
+        n = pb.t.size
+        return cls(
+            structure=pb.structure, t=arr(pb.t), u=arr(pb.u_meas),
+            up=arr(pb.up_meas) if pb.fits_uplift else None,
+            values0={k: arr(float(v)) for k, v in pb.values0.items()},
+            k_min=arr(pb.k_min), scale=arr(pb.scale), t_ref=arr(pb.t_ref),
+            eps=arr(1e-9 * float(np.median(np.diff(pb.t))) / n),
+            uplift_weight=arr(float(pb.uplift_weight)), model=pb.model, params=pb.params,
+            impact=pb.impact, rtol=float(pb.rtol), atol=float(pb.atol),
         )
 
-    def residuals(self, z, mask, adjoint="forward"):
+    def decode(self, z) -> dict:
+        """Unconstrained z (fitted params only) -> dict of all four natural values."""
+        out = dict(self.values0)
+        for i, name in enumerate(self.params):
+            zi = z[i]
+            if name == "k_f":
+                out["k_f"] = self.k_min + jnp.exp(zi)
+            elif name == "r":
+                out["r"] = jax.nn.sigmoid(zi)
+            elif name == "u0":
+                out["u0"] = zi * self.scale
+            else:
+                out["t0"] = self.t_ref + zi * _T_SCALE
+        return out
+
+    def respond(self, z):
+        """The model on the trace times: held at u0 before the release at t0, then
+        `rockjax.simulate` of the release at rest (model time t - t0).
+
+        The samples before the release get model times 0, eps, 2 eps, ... (eps ~ 1e-9 of
+        a step / n: strictly increasing, as `simulate` needs, and as good as 0: the state
+        there is the release state to ~1e-20 m), which do not depend on t0.
+        """
+        v = self.decode(z)
+        s = self.structure.replace(k_f=v["k_f"])
+        ts = jnp.maximum(self.t - v["t0"], self.eps * jnp.arange(self.t.shape[0]))
+        return rockjax.simulate(
+            s, rockjax.FreeVibration(v["u0"]), ts[-1], ts=ts, r=v["r"], model=self.model,
+            impact=self.impact, rtol=self.rtol, atol=self.atol, adjoint="forward",
+        )
+
+    def residuals(self, z, mask):
         """Masked residuals (displacement, then weighted uplift) in units of `scale`."""
-        pb = self.problem
-        res = self.respond(z, adjoint)
-        parts = [mask * (res.u - self.u_j) / pb.scale]
-        if self.up_j is not None and pb.uplift_weight > 0:
-            parts.append(mask * pb.uplift_weight * (res.uplift - self.up_j) / pb.scale)
+        res = self.respond(z)
+        parts = [mask * (res.u - self.u) / self.scale]
+        if self.up is not None:
+            parts.append(mask * self.uplift_weight * (res.uplift - self.up) / self.scale)
         r = jnp.concatenate(parts)
         # a failed or overturned run is a bad point, not a crash: large finite residuals
         bad = (res.status != rockjax.STATUS["completed"]) | ~jnp.all(jnp.isfinite(r))
@@ -517,41 +611,44 @@ class _Misfit:
         """The residuals and their Jacobian d r / d z (forward mode)."""
         return self.residuals(z, mask), jax.jacfwd(self.residuals)(z, mask)
 
-    def channels(self, response) -> list:
-        """Unmasked residual arrays of a response (numpy), one per fitted channel."""
-        pb = self.problem
-        out = [(np.asarray(response.u) - pb.u_meas) / pb.scale]
-        if pb.fits_uplift:
-            out.append(pb.uplift_weight * (np.asarray(response.uplift) - pb.up_meas) / pb.scale)
-        return out
+
+@eqx.filter_jit
+def _respond(model: _Model, z):
+    """`model.respond(z)`, compiled."""
+    return model.respond(z)
 
 
-def _make_run_chunk(misfit: _Misfit, opt):
-    """The compiled optimiser run: `_CHUNK` steps of every start (vmap over the first axis).
+def _channels(pb: _Problem, response) -> list:
+    """Unmasked residual arrays of a response (numpy), one per fitted channel."""
+    out = [(np.asarray(response.u) - pb.u_meas) / pb.scale]
+    if pb.fits_uplift:
+        out.append(pb.uplift_weight * (np.asarray(response.uplift) - pb.up_meas) / pb.scale)
+    return out
 
-    `run_chunk(z, opt_state, mask, free)` returns the new points and states, the loss at
-    each step (starts, _CHUNK), and the residuals and Jacobian at the first step.
+
+@eqx.filter_jit
+def _run_chunk(model: _Model, opt, z, opt_state, mask, free):
+    """`_CHUNK` optimiser steps of every start (vmap over the first axis), compiled.
+
+    Returns the new points and states, the loss at each step (starts, _CHUNK), and the
+    residuals and Jacobian at the first step.
     """
 
-    @eqx.filter_jit
-    def run_chunk(z, opt_state, mask, free):
-        def one(z, opt_state):
-            def step(carry, _):
-                z, st = carry
-                r, J = misfit.res_jac(z, mask)
-                J = J * free  # frozen parameters get a zero column: a zero step
-                value = 0.5 * jnp.sum(r**2)
-                g = J.T @ r
-                upd, st = opt.update(g, st, z, value=value, jtj=J.T @ J)
-                return (z + upd, st), (value, r, J)
+    def one(z, opt_state):
+        def step(carry, _):
+            z, st = carry
+            r, J = model.res_jac(z, mask)
+            J = J * free  # frozen parameters get a zero column: a zero step
+            value = 0.5 * jnp.sum(r**2)
+            g = J.T @ r
+            upd, st = opt.update(g, st, z, value=value, jtj=J.T @ J)
+            return (z + upd, st), (value, r, J)
 
-            (z_new, st), (vals, rs, Js) = jax.lax.scan(step, (z, opt_state), None,
-                                                        length=_CHUNK)
-            return z_new, st, vals, rs[0], Js[0]
+        (z_new, st), (vals, rs, Js) = jax.lax.scan(step, (z, opt_state), None,
+                                                    length=_CHUNK)
+        return z_new, st, vals, rs[0], Js[0]
 
-        return jax.vmap(one)(z, opt_state)
-
-    return run_chunk
+    return jax.vmap(one)(z, opt_state)
 
 
 # ----------------------------------------- multi-start run with growing horizon
@@ -604,7 +701,7 @@ class _Run:
         return self.opt_state.best_params if self.lm else self.z
 
 
-def _run_horizon(problem: _Problem, run_chunk, run: _Run, stage: int, frac: float,
+def _run_horizon(problem: _Problem, model: _Model, opt, run: _Run, stage: int, frac: float,
                  progress: _Progress):
     """Iterate every start on the first `frac` of the trace until all of them stall (no
     relative improvement of the best loss over two chunks) or `max_iter` iterations."""
@@ -618,7 +715,8 @@ def _run_horizon(problem: _Problem, run_chunk, run: _Run, stage: int, frac: floa
     stall = np.zeros(problem.starts, int)
     stage_iter = 0
     while stage_iter < problem.max_iter:
-        run.z, run.opt_state, vals, _, _ = run_chunk(run.z, run.opt_state, mask, free)
+        run.z, run.opt_state, vals, _, _ = _run_chunk(model, opt, run.z, run.opt_state, mask,
+                                                      free)
         vals = np.asarray(vals)  # (starts, chunk)
         run.vals = vals
         run.n_iter += _CHUNK
@@ -637,7 +735,7 @@ def _run_horizon(problem: _Problem, run_chunk, run: _Run, stage: int, frac: floa
             break
 
 
-def _check_outliers(problem: _Problem, misfit: _Misfit, run: _Run) -> bool:
+def _check_outliers(problem: _Problem, model: _Model, run: _Run) -> bool:
     """Look for outliers in the fit just finished; update `run.keep`. True: fit again.
 
     Outliers (spikes) are residuals of the converged fit far outside the spread of the
@@ -648,10 +746,10 @@ def _check_outliers(problem: _Problem, misfit: _Misfit, run: _Run) -> bool:
     z_now = np.asarray(run.best_params())
     last = np.asarray(run.opt_state.best_value) if run.lm else run.vals[:, -1]
     i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
-    res_now = misfit.respond(jnp.asarray(z_now[i_now]), "reverse")
+    res_now = _respond(model, jnp.asarray(z_now[i_now]))
     if not (run.converged[i_now] and int(res_now.status) == rockjax.STATUS["completed"]):
         return False
-    found = _find_outliers(misfit.channels(res_now), ~run.keep,
+    found = _find_outliers(_channels(problem, res_now), ~run.keep,
                            problem.within(problem.horizons[-1]))
     # more than a few is a misfit (a wrong minimum, a wrong model), not spikes
     if (np.count_nonzero(found) > _MAX_OUTLIER_FRACTION * problem.t.size
@@ -664,7 +762,7 @@ def _check_outliers(problem: _Problem, misfit: _Misfit, run: _Run) -> bool:
     return True
 
 
-def _run_stages(problem: _Problem, misfit: _Misfit, run_chunk, opt, z_start, lm: bool) -> _Run:
+def _run_stages(problem: _Problem, model: _Model, opt, z_start, lm: bool) -> _Run:
     """The multi-start fit: each horizon in turn, then refits of the whole trace without
     its outliers (if any)."""
     z = jnp.asarray(z_start)
@@ -679,8 +777,8 @@ def _run_stages(problem: _Problem, misfit: _Misfit, run_chunk, opt, z_start, lm:
         if stage > 0:
             run.z = run.best_params()
             run.opt_state = jax.vmap(opt.init)(run.z)
-        _run_horizon(problem, run_chunk, run, stage, frac, progress)
-        if stage == len(plan) - 1 and _check_outliers(problem, misfit, run):
+        _run_horizon(problem, model, opt, run, stage, frac, progress)
+        if stage == len(plan) - 1 and _check_outliers(problem, model, run):
             plan.append(problem.horizons[-1])
     progress.close()
     return run
@@ -699,12 +797,12 @@ class _Best:
     history: np.ndarray  # its loss at each iteration on the last horizon
 
 
-def _best_start(problem: _Problem, run_chunk, opt, run: _Run) -> _Best:
+def _best_start(problem: _Problem, model: _Model, opt, run: _Run) -> _Best:
     # best point of every start, and r, J there (one more chunk evaluates them first)
     z_best = run.best_params()
     full = jnp.asarray(run.keep, dtype=float)  # outliers (if any) stay out
-    _, _, vals_b, r_b, J_b = run_chunk(z_best, jax.vmap(opt.init)(z_best), full,
-                                       jnp.ones(len(problem.params)))
+    _, _, vals_b, r_b, J_b = _run_chunk(model, opt, z_best, jax.vmap(opt.init)(z_best), full,
+                                        jnp.ones(len(problem.params)))
     final_losses = np.asarray(vals_b)[:, 0]
     i_best = int(np.nanargmin(np.where(np.isfinite(final_losses), final_losses, np.inf)))
     return _Best(
@@ -730,7 +828,7 @@ class _Uncertainty:
     sigma: float  # estimated noise std of the displacement [m]
 
 
-def _uncertainty(problem: _Problem, transform: _Transform, best: _Best,
+def _uncertainty(problem: _Problem, model: _Model, transform: _Transform, best: _Best,
                  keep: np.ndarray) -> _Uncertainty:
     """Standard errors and correlations at the optimum (Gauss-Newton / Fisher information).
 
@@ -752,7 +850,7 @@ def _uncertainty(problem: _Problem, transform: _Transform, best: _Best,
         sig2.append(s2)
         var[ch] = s2
     sigma2 = sig2[0]
-    vals_nat = {k: float(v) for k, v in transform.decode(jnp.asarray(best.z)).items()}
+    vals_nat = {k: float(v) for k, v in model.decode(jnp.asarray(best.z)).items()}
     dtheta_dz = transform.derivatives(best.z)
     D = np.diag(dtheta_dz)
     try:
@@ -847,4 +945,6 @@ def _result(problem: _Problem, run: _Run, best: _Best, unc: _Uncertainty, ident:
         warnings=tuple(messages),
         scale=problem.scale,
         outliers=np.flatnonzero(~keep),
+        release={**problem.release.as_dict(), "t0_start_s": problem.values0["t0"],
+                 "u0_start_m": problem.values0["u0"]},
     )

@@ -1,4 +1,5 @@
-"""Measured (or synthetic) free-vibration decay traces: a container and a CSV reader.
+"""Measured (or synthetic) free-vibration decay traces: a container, a CSV reader, and the
+detection of the release.
 
 A decay trace is the top displacement ``u`` [m] of a structure released from an initial
 displacement, sampled at times ``t`` [s], optionally with the uplift of the lifted corner
@@ -10,12 +11,26 @@ displacement, sampled at times ``t`` [s], optionally with the uplift of the lift
     0.005,0.0999,0.0506
     ...
 
-The header is ``t,u`` or ``t,u,uplift``; values are in SI units (s, m, m). Whitespace
-around values and blank lines are ignored. The reader refuses, with a ``ValueError`` that
-names the file and the line: a missing or wrong header, a row with the wrong number of
-values, a value that is not a number or is NaN/inf, a time that does not strictly increase,
-fewer than 10 samples, and a gap in time (a step more than 10 times the median step) --
-split such a trace into pieces or resample it before fitting.
+**Header.** One name per column: time ``t`` or ``time``; displacement ``u``, ``disp`` or
+``displacement``; uplift ``uplift`` (optional); in any order, case-insensitive. Each name
+may carry its unit: ``time_s``, ``t_ms``, ``disp_mm``, ``u [mm]``, ``u (cm)``,
+``uplift[mm]``. Units of time: s, ms, us, min; of length: m, cm, mm, um, in. A column
+without a unit is taken as SI (s, m). Values are converted to SI, and the trace records
+what was read (:meth:`DecayTrace.info`). ``read_trace(path, columns={"t": "Zeit", "u":
+"Weg_mm"})`` picks the columns by name instead (others are ignored), and ``units={"u":
+"mm"}`` gives units the header does not state.
+
+**Refused**, with a ``ValueError`` that names the file and the line: a missing or
+unrecognised header, a row with the wrong number of values, a value that is not a number
+or is infinite, a time that does not strictly increase, fewer than 10 samples, and a gap in
+time (a step more than 10 times the median step) -- split such a trace into pieces or
+resample it before fitting. A missing value (empty, ``nan``, ``NA``) is refused too, with
+the count of such rows; ``drop_nan=True`` drops those rows instead, with a
+:class:`DroppedRowsWarning` that says how many.
+
+**Release.** A lab trace often starts before the release: the structure held at its
+initial displacement for a while, or a logger clock that does not start at 0.
+:func:`detect_release` finds the release (noise-aware, see there).
 
 The package also ships three SYNTHETIC traces made with rockjax by
 ``data/make_synthetic_traces.py`` (see :func:`synthetic_trace_path` and
@@ -29,17 +44,28 @@ import json
 import math
 import os
 import pathlib
+import re
+import types
+import warnings
 
 import numpy as np
 
 __all__ = [
+    "CHANNELS",
     "DecayTrace",
+    "detect_release",
+    "DroppedRowsWarning",
+    "LENGTH_UNITS",
     "MAX_GAP_RATIO",
     "MIN_SAMPLES",
     "read_trace",
+    "Release",
+    "RELEASE_SIGMAS",
     "SYNTHETIC_TRACES",
     "synthetic_trace_path",
     "synthetic_truth",
+    "TIME_UNITS",
+    "TraceError",
 ]
 
 MIN_SAMPLES = 10
@@ -51,8 +77,39 @@ MAX_GAP_RATIO = 10.0
 SYNTHETIC_TRACES = ("synthetic_decay_clean", "synthetic_decay_noisy", "synthetic_decay_exact")
 """Names of the synthetic traces shipped in ``rockjax._data`` (files ``<name>.csv/.json``)."""
 
-_HEADERS = (("t", "u"), ("t", "u", "uplift"))
-_EXPECTED_HEADER = "'t,u' or 't,u,uplift' (SI units: s, m, m)"
+CHANNELS = ("t", "u", "uplift")
+"""The channels of a trace: time [s], top displacement [m], uplift [m] (optional)."""
+
+TIME_UNITS = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "min": 60.0}
+"""Units of time a trace file may use, and their size in s."""
+
+LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "in": 0.0254}
+"""Units of length a trace file may use, and their size in m."""
+
+_UNITS_OF = {"t": TIME_UNITS, "u": LENGTH_UNITS, "uplift": LENGTH_UNITS}
+_SI = {"t": "s", "u": "m", "uplift": "m"}
+_KIND = {"t": "time", "u": "displacement", "uplift": "uplift"}
+_NAMES = {"t": ("t", "time"), "u": ("u", "disp", "displacement"), "uplift": ("uplift",)}
+_MISSING = ("", "nan", "na", "n/a", "null", "none")
+_EXPECTED_HEADER = (
+    "'t,u' or 't,u,uplift' (s, m, m), or with units such as 'time_s,disp_mm' or "
+    "'t [s],u [mm]'"
+)
+_UNITS_FROM = ("header", "units argument", "assumed SI", "SI arrays")
+
+
+class TraceError(ValueError):
+    """A trace that cannot be used as given. ``str(e)`` gives the advice in Python terms
+    (e.g. ``drop_nan=True``); ``e.cli_message`` gives it in ``rockjax fit``'s terms
+    (``--drop-nan``)."""
+
+    def __init__(self, message: str, cli_message: str | None = None):
+        super().__init__(message)
+        self.cli_message = message if cli_message is None else cli_message
+
+
+class DroppedRowsWarning(UserWarning):
+    """``read_trace(..., drop_nan=True)`` dropped rows with missing values."""
 
 
 def _as_vector(name: str, x) -> np.ndarray:
@@ -84,6 +141,14 @@ def _first_gap(t: np.ndarray) -> tuple[int, float, float] | None:
     return i, float(dt[i - 1]), med
 
 
+def _frozen_map(name: str, value, default: dict):
+    """A read-only str -> str mapping over channels (`default` when None)."""
+    d = dict(default if value is None else value)
+    if not all(k in CHANNELS and isinstance(v, str) for k, v in d.items()):
+        raise ValueError(f"DecayTrace.{name}: must map channels {CHANNELS} to str, got {d!r}")
+    return types.MappingProxyType(d)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class DecayTrace:
     """A free-vibration decay trace: top displacement (and optionally uplift) against time.
@@ -99,12 +164,21 @@ class DecayTrace:
         Uplift of the lifted corner [m], finite; ``None`` (default) if not measured.
     source : str, optional
         Where the trace came from (e.g. the file path), for messages.
+    columns, units, units_from : mapping, optional
+        What was read, per channel (``"t"``, ``"u"``, ``"uplift"``): the column of the
+        file, its unit there (e.g. ``"mm"``; the arrays are in SI units whatever it was),
+        and where that unit came from (``"header"``, ``"units argument"``, ``"assumed
+        SI"``). Set by :func:`read_trace`; for arrays given directly, SI units.
+    dropped_lines : tuple of int, optional
+        Lines of the file dropped for missing values (``read_trace(..., drop_nan=True)``).
 
     Attributes
     ----------
     t, u, uplift : numpy.ndarray
         Read-only float64 copies of the inputs (``uplift`` may be ``None``).
     source : str
+    columns, units, units_from : mappingproxy
+    dropped_lines : tuple of int
 
     Raises
     ------
@@ -121,6 +195,10 @@ class DecayTrace:
     u: np.ndarray
     uplift: np.ndarray | None = None
     source: str = ""
+    columns: object = None
+    units: object = None
+    units_from: object = None
+    dropped_lines: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.source, str):
@@ -153,6 +231,16 @@ class DecayTrace:
             if up.shape != t.shape:
                 raise ValueError(f"DecayTrace.uplift: has {up.size} samples but t has {t.size}")
             object.__setattr__(self, "uplift", up)
+        self._set_read_info()
+
+    def _set_read_info(self):
+        chans = CHANNELS if self.uplift is not None else CHANNELS[:2]
+        si = {c: _SI[c] for c in chans}
+        object.__setattr__(self, "columns", _frozen_map("columns", self.columns, {}))
+        object.__setattr__(self, "units", _frozen_map("units", self.units, si))
+        object.__setattr__(self, "units_from", _frozen_map(
+            "units_from", self.units_from, dict.fromkeys(chans, "SI arrays")))
+        object.__setattr__(self, "dropped_lines", tuple(int(i) for i in self.dropped_lines))
 
     @property
     def n(self) -> int:
@@ -165,16 +253,47 @@ class DecayTrace:
         return float(self.t[-1] - self.t[0])
 
     @property
+    def dt(self) -> float:
+        """The median time step [s], to 12 significant digits (0.005, not 0.00499999...)."""
+        return float(f"{float(np.median(np.diff(self.t))):.12g}")
+
+    @property
+    def amplitude(self) -> float:
+        """``max |u|`` [m]."""
+        return float(np.max(np.abs(self.u)))
+
+    @property
     def has_uplift(self) -> bool:
         """Whether an uplift channel is present."""
         return self.uplift is not None
+
+    def info(self) -> dict:
+        """What was read, JSON-ready (SI values; keys carry their units): ``file``,
+        ``columns``, ``units_in_file``, ``units_from`` (per channel), ``dt_s``,
+        ``n_points``, ``duration_s``, ``t_start_s``, ``t_end_s``, ``max_abs_u_m``,
+        ``has_uplift``, ``dropped_nan_rows`` and ``dropped_lines``."""
+        return {
+            "file": self.source,
+            "columns": dict(self.columns),
+            "units_in_file": dict(self.units),
+            "units_from": dict(self.units_from),
+            "dt_s": self.dt,
+            "n_points": self.n,
+            "duration_s": self.duration,
+            "t_start_s": float(self.t[0]),
+            "t_end_s": float(self.t[-1]),
+            "max_abs_u_m": self.amplitude,
+            "has_uplift": self.has_uplift,
+            "dropped_nan_rows": len(self.dropped_lines),
+            "dropped_lines": list(self.dropped_lines),
+        }
 
     def __repr__(self) -> str:
         up = "with uplift" if self.has_uplift else "no uplift"
         src = f", source={self.source!r}" if self.source else ""
         return (
             f"DecayTrace(n={self.n}, t=[{self.t[0]:g} .. {self.t[-1]:g}] s, "
-            f"peak |u|={float(np.max(np.abs(self.u))):.4g} m, {up}{src})"
+            f"peak |u|={self.amplitude:.4g} m, {up}{src})"
         )
 
 
@@ -194,44 +313,60 @@ def _open_text(path):
     raise TypeError(f"read_trace: expected a path, got {type(path).__name__}")
 
 
-def read_trace(path) -> DecayTrace:
+def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> DecayTrace:
     """Read a free-vibration decay trace from a CSV file.
 
     Parameters
     ----------
     path : str, os.PathLike or importlib.resources.abc.Traversable
         The CSV file. Layout: optional leading comment lines starting with ``#``, then the
-        header ``t,u`` or ``t,u,uplift``, then one row per sample with time [s], top
-        displacement [m] and, if in the header, uplift [m]. Whitespace around values and
-        blank lines are ignored.
+        header, then one row per sample. Whitespace around values and blank lines are
+        ignored. Header: time ``t``/``time``, displacement ``u``/``disp``/``displacement``
+        and optionally ``uplift``, in any order, each with an optional unit (``time_s``,
+        ``t_ms``, ``disp_mm``, ``u [mm]``, ``u (cm)``; time: s, ms, us, min; length: m,
+        cm, mm, um, in); without a unit, SI (s, m).
+    columns : mapping, optional
+        Pick the columns by their header names instead, e.g. ``{"t": "time_s", "u":
+        "disp_mm"}`` (``"uplift"`` optional; case-insensitive). Other columns are ignored.
+        The unit is still taken from a suffix of the name when it has one.
+    units : mapping, optional
+        Units of channels whose header names state none, e.g. ``{"u": "mm"}``. A unit
+        that contradicts the header is refused.
+    drop_nan : bool
+        Drop rows with a missing value (empty, ``nan``, ``NA``) in a used column, with a
+        :class:`DroppedRowsWarning` saying how many; default False: refuse them.
 
     Returns
     -------
     DecayTrace
-        With ``source`` set to ``str(path)``; ``uplift`` is ``None`` for a ``t,u`` file.
+        In SI units, with ``source`` set to ``str(path)``, and what was read in
+        ``columns``, ``units``, ``units_from`` and ``dropped_lines`` (see
+        :meth:`DecayTrace.info`); ``uplift`` is ``None`` without an uplift column.
 
     Raises
     ------
     FileNotFoundError
         If `path` does not exist (the message names it).
     ValueError
-        Naming the file and the line number, for: an empty file or a missing/wrong header,
-        a row with the wrong number of values, a value that is not a number, a NaN or
-        infinite value, a time that goes backwards or repeats, fewer than 10 samples, or a
-        gap in time (a step over 10 times the median step; split the trace or resample).
+        Naming the file and the line number, for: an empty file or a missing/unrecognised
+        header, an unknown unit, a row with the wrong number of values, a value that is not
+        a number or is infinite, a missing value (unless `drop_nan`), a time that goes
+        backwards or repeats, fewer than 10 samples, or a gap in time (a step over 10 times
+        the median step; split the trace or resample). Those with advice that differs
+        between Python and the command line are :class:`TraceError`.
 
     Examples
     --------
     >>> from identification import read_trace, synthetic_trace_path
     >>> tr = read_trace(synthetic_trace_path("synthetic_decay_clean"))
-    >>> tr.n, tr.duration
-    (1601, 8.0)
+    >>> tr.n, tr.duration, tr.units["u"]
+    (1601, 8.0, 'm')
     """
     name = str(path)
     with _open_text(path) as f:
         lines = f.read().splitlines()
-    header_line, cols = _read_header(name, lines)
-    rows, linenos = _read_rows(name, lines, header_line, cols)
+    header_line, layout = _read_header(name, lines, columns, units)
+    rows, linenos, dropped = _read_rows(name, lines, header_line, layout, drop_nan)
     if len(rows) < MIN_SAMPLES:
         last = linenos[-1] if linenos else header_line + 1
         raise _line_error(
@@ -240,7 +375,9 @@ def read_trace(path) -> DecayTrace:
             f"at least {MIN_SAMPLES} are needed",
         )
     data = np.asarray(rows, dtype=np.float64)
-    t = data[:, 0]
+    si = {ch: data[:, k] * _UNITS_OF[ch][layout.units[ch]]
+          for k, ch in enumerate(layout.channels)}
+    t = si["t"]
     gap = _first_gap(t)
     if gap is not None:
         k, step, med = gap
@@ -250,18 +387,55 @@ def read_trace(path) -> DecayTrace:
             f"{t[k]:g} s, more than {MAX_GAP_RATIO:g} x the median step {med:g} s); "
             "split the trace or resample",
         )
-    uplift = data[:, 2] if len(cols) == 3 else None
-    return DecayTrace(t=t, u=data[:, 1], uplift=uplift, source=name)
+    if dropped:
+        warnings.warn(f"{name}: dropped {len(dropped)} row(s) with missing (NaN) values "
+                      f"(line(s) {_some(dropped)})", DroppedRowsWarning, stacklevel=2)
+    return DecayTrace(t=t, u=si["u"], uplift=si.get("uplift"), source=name,
+                      columns=layout.names, units=layout.units, units_from=layout.units_from,
+                      dropped_lines=dropped)
 
 
-def _line_error(name: str, lineno: int, msg: str) -> ValueError:
-    """The ValueError for line `lineno` (1-based) of the file `name`."""
-    return ValueError(f"{name}, line {lineno}: {msg}")
+def _some(items, n: int = 5) -> str:
+    """The first `n` of `items`, comma-separated, with '...' when there are more."""
+    items = list(items)
+    return ", ".join(str(x) for x in items[:n]) + (", ..." if len(items) > n else "")
 
 
-def _read_header(name: str, lines: list[str]) -> tuple[int, tuple[str, ...]]:
-    """(index of the header line, its column names): the first line that is neither blank
-    nor a comment, which must be one of `_HEADERS`."""
+def _line_error(name: str, lineno: int, msg: str, cli: str | None = None) -> TraceError:
+    """The error for line `lineno` (1-based) of the file `name` (`cli`: the same message
+    with the command line's advice)."""
+    return TraceError(f"{name}, line {lineno}: {msg}",
+                      None if cli is None else f"{name}, line {lineno}: {cli}")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Layout:
+    """Which columns of the file hold which channel, and in which unit."""
+
+    header: tuple  # the header's cells, stripped
+    channels: tuple  # channels present, in CHANNELS order
+    index: dict  # channel -> column index
+    names: dict  # channel -> column name
+    units: dict  # channel -> unit in the file
+    units_from: dict  # channel -> "header", "units argument" or "assumed SI"
+
+
+def _split_unit(cell: str) -> tuple[str, str | None]:
+    """(name, unit or None) of a header cell: 'u [mm]', 'u (mm)', 'u[mm]' and 'u_mm' carry
+    the unit mm; lower case. An underscore suffix counts only if it is a known unit."""
+    s = cell.strip().lower()
+    m = re.fullmatch(r"(.*?)\s*[\[(]\s*([^\[\]()]*?)\s*[\])]", s)
+    if m:
+        return m.group(1).strip(), m.group(2)
+    base, sep, suffix = s.rpartition("_")
+    if sep and base and (suffix in TIME_UNITS or suffix in LENGTH_UNITS):
+        return base, suffix
+    return s, None
+
+
+def _read_header(name: str, lines: list[str], columns, units) -> tuple[int, _Layout]:
+    """(index of the header line, the layout it gives): the header is the first line that
+    is neither blank nor a comment."""
     header_line = None
     for i, raw in enumerate(lines):
         s = raw.strip()
@@ -272,43 +446,151 @@ def _read_header(name: str, lines: list[str]) -> tuple[int, tuple[str, ...]]:
         what = "empty file" if not any(x.strip() for x in lines) else "only comment lines"
         raise _line_error(name, max(len(lines), 1),
                           f"{what}; expected a header line {_EXPECTED_HEADER}")
-    cols = tuple(c.strip().lower() for c in lines[header_line].split(","))
-    if cols not in _HEADERS:
-        raise _line_error(
-            name, header_line + 1,
-            f"expected header {_EXPECTED_HEADER}, got {lines[header_line].strip()!r}",
-        )
-    return header_line, cols
+    raw = lines[header_line].strip()
+    cells = tuple(c.strip() for c in raw.split(","))
+    where = (name, header_line + 1)
+    index = (_auto_columns(where, raw, cells) if columns is None
+             else _named_columns(where, cells, columns))
+    chans = tuple(c for c in CHANNELS if c in index)
+    names = {ch: cells[index[ch]] for ch in chans}
+    unit_of, units_from = _channel_units(where, names, units)
+    return header_line, _Layout(header=cells, channels=chans, index=index, names=names,
+                                units=unit_of, units_from=units_from)
 
 
-def _read_rows(name: str, lines: list[str], header_line: int, cols: tuple[str, ...]):
-    """(the rows of values after the header, their 1-based line numbers); blank lines are
-    skipped, and time must strictly increase."""
-    rows: list[tuple[float, ...]] = []
+def _auto_columns(where, raw: str, cells: tuple) -> dict:
+    """channel -> column index, from the names of the header (every column must be one)."""
+    hint = ("; name the columns with columns={'t': ..., 'u': ...}",
+            "; name the columns with --columns t=NAME,u=NAME")
+    index: dict = {}
+    for i, cell in enumerate(cells):
+        base, _ = _split_unit(cell)
+        ch = next((c for c, names in _NAMES.items() if base in names), None)
+        if ch is None:
+            msg = (f"expected header {_EXPECTED_HEADER}, got {raw!r}: column {cell!r} is "
+                   "not a time, displacement or uplift column")
+            raise _line_error(*where, msg + hint[0], msg + hint[1])
+        if ch in index:
+            msg = f"two {_KIND[ch]} columns in the header ({cells[index[ch]]!r} and {cell!r})"
+            raise _line_error(*where, msg + hint[0], msg + hint[1])
+        index[ch] = i
+    for ch in ("t", "u"):
+        if ch not in index:
+            msg = f"expected header {_EXPECTED_HEADER}, got {raw!r}: no {_KIND[ch]} column"
+            raise _line_error(*where, msg + hint[0], msg + hint[1])
+    return index
+
+
+def _named_columns(where, cells: tuple, columns) -> dict:
+    """channel -> column index, from an explicit mapping channel -> column name."""
+    if not isinstance(columns, dict) or not all(isinstance(v, str) for v in columns.values()):
+        raise ValueError(f"columns must map channels to column names, such as {{'t': "
+                         f"'time_s', 'u': 'disp_mm'}}, got {columns!r}")
+    bad = sorted(set(columns) - set(CHANNELS))
+    if bad or not {"t", "u"} <= set(columns):
+        raise ValueError(f"columns must name the columns of 't' and 'u' (and optionally "
+                         f"'uplift'), got {sorted(columns)}")
+    lower = [c.lower() for c in cells]
+    index = {}
+    for ch, col in columns.items():
+        n = lower.count(col.strip().lower())
+        if n != 1:
+            what = "no column" if n == 0 else f"{n} columns"
+            raise _line_error(*where, f"{what} {col!r} in the header (its columns: "
+                              f"{', '.join(repr(c) for c in cells)})")
+        index[ch] = lower.index(col.strip().lower())
+    if len(set(index.values())) < len(index):
+        raise ValueError(f"columns maps two channels to one column: {columns!r}")
+    return index
+
+
+def _check_units_arg(units) -> dict:
+    if units is None:
+        return {}
+    if not isinstance(units, dict) or set(units) - set(CHANNELS):
+        raise ValueError(f"units must map channels {CHANNELS} to units, such as {{'u': "
+                         f"'mm'}}, got {units!r}")
+    out = {}
+    for ch, unit in units.items():
+        key = str(unit).strip().lower()
+        if key not in _UNITS_OF[ch]:
+            raise ValueError(f"units[{ch!r}]: unknown unit {unit!r} for {_KIND[ch]}; "
+                             f"expected one of {', '.join(_UNITS_OF[ch])}")
+        out[ch] = key
+    return out
+
+
+def _channel_units(where, names: dict, units) -> tuple[dict, dict]:
+    """(channel -> unit in the file, channel -> where that unit came from)."""
+    given = _check_units_arg(units)
+    unit_of, units_from = {}, {}
+    for ch, cell in names.items():
+        _, in_header = _split_unit(cell)
+        table = _UNITS_OF[ch]
+        if in_header is not None and in_header not in table:
+            raise _line_error(*where, f"column {cell!r}: {in_header!r} is not a unit of "
+                              f"{'time' if ch == 't' else 'length'} (expected one of "
+                              f"{', '.join(table)})")
+        arg = given.get(ch)
+        if in_header is not None and arg is not None and table[in_header] != table[arg]:
+            raise _line_error(*where, f"column {cell!r} is in {in_header}, but the units "
+                              f"given say {arg} for {ch!r}")
+        if in_header is not None:
+            unit_of[ch], units_from[ch] = in_header, "header"
+        elif arg is not None:
+            unit_of[ch], units_from[ch] = arg, "units argument"
+        else:
+            unit_of[ch], units_from[ch] = _SI[ch], "assumed SI"
+    return unit_of, units_from
+
+
+def _read_rows(name: str, lines: list[str], header_line: int, layout: _Layout,
+               drop_nan: bool):
+    """(the rows of values after the header, in file units, their 1-based line numbers,
+    the line numbers of rows dropped for a missing value); blank lines are skipped, and
+    time must strictly increase."""
+    rows: list[list[float]] = []
     linenos: list[int] = []
+    missing: list[tuple[int, str, str]] = []  # (line, column, value)
     for i in range(header_line + 1, len(lines)):
         lineno = i + 1
         s = lines[i].strip()
         if not s:
             continue
-        vals = _parse_row(name, lineno, s, cols)
+        vals, gone = _parse_row(name, lineno, s, layout)
+        if gone is not None:
+            missing.append((lineno, *gone))
+            continue
         if rows:
             _check_time_step(name, lineno, vals[0], rows[-1][0], linenos[-1])
-        rows.append(tuple(vals))
+        rows.append(vals)
         linenos.append(lineno)
-    return rows, linenos
+    if missing and not drop_nan:
+        lineno, col, x = missing[0]
+        msg = (f"column {col!r}: missing value {x!r} (NaN); {len(missing)} row(s) of the "
+               f"file have missing values (line(s) {_some(m[0] for m in missing)}); ")
+        raise _line_error(name, lineno, msg + "pass drop_nan=True to drop them",
+                          msg + "pass --drop-nan to drop them")
+    return rows, linenos, tuple(m[0] for m in missing)
 
 
-def _parse_row(name: str, lineno: int, s: str, cols: tuple[str, ...]) -> list[float]:
-    """The finite values of the (stripped, non-blank) row `s`, one per column."""
+def _parse_row(name: str, lineno: int, s: str, layout: _Layout):
+    """(the finite values of the used columns of row `s`, in `layout.channels` order, and
+    None), or (None, (column, value)) for a row with a missing value."""
     fields = [x.strip() for x in s.split(",")]
-    if len(fields) != len(cols):
+    if len(fields) != len(layout.header):
         raise _line_error(
             name, lineno,
-            f"expected {len(cols)} values ({','.join(cols)}), got {len(fields)}: {s!r}",
+            f"expected {len(layout.header)} values ({','.join(layout.header)}), got "
+            f"{len(fields)}: {s!r}",
         )
     vals = []
-    for col, x in zip(cols, fields, strict=True):
+    gone = None
+    for ch in layout.channels:
+        col, x = layout.names[ch], fields[layout.index[ch]]
+        if x.lower().lstrip("+-") in _MISSING:
+            gone = gone or (col, x)
+            continue
         try:
             v = float(x)
         except ValueError:
@@ -316,7 +598,7 @@ def _parse_row(name: str, lineno: int, s: str, cols: tuple[str, ...]) -> list[fl
         if not math.isfinite(v):
             raise _line_error(name, lineno, f"column {col!r}: value {x!r} is not finite")
         vals.append(v)
-    return vals
+    return (None, gone) if gone is not None else (vals, None)
 
 
 def _check_time_step(name: str, lineno: int, t: float, t_prev: float, prev_lineno: int):
@@ -324,15 +606,16 @@ def _check_time_step(name: str, lineno: int, t: float, t_prev: float, prev_linen
     if t == t_prev:
         raise _line_error(
             name, lineno,
-            f"time {t!r} s repeats the previous sample (line {prev_lineno}); "
+            f"time {t!r} repeats the previous sample (line {prev_lineno}); "
             "time must be strictly increasing",
         )
     if t < t_prev:
         raise _line_error(
             name, lineno,
-            f"time goes backwards: {t!r} s after {t_prev!r} s "
+            f"time goes backwards: {t!r} after {t_prev!r} "
             f"(line {prev_lineno}); time must be strictly increasing",
         )
+
 
 
 def synthetic_trace_path(name: str):
@@ -392,3 +675,141 @@ def _packaged(name: str, suffix: str):
             "run `python data/make_synthetic_traces.py`"
         )
     return res
+
+
+# ----------------------------------------------------------------------------- release
+
+RELEASE_SIGMAS = 5.0
+"""A sample departs from the initial plateau when it lies more than this many noise standard
+deviations from the plateau's level, and so do the next two."""
+_PERSIST = 3  # consecutive samples beyond the threshold that make a departure
+_HOLD_STEPS = 3.0  # a release more than this many steps after the first sample: a hold
+
+
+@dataclasses.dataclass(frozen=True)
+class Release:
+    """Where the free vibration of a decay trace starts (see :func:`detect_release`).
+
+    - ``time`` [s]: the release time to use: ``estimate`` when the trace starts with a
+      hold (``held``), else the first sample's time.
+    - ``estimate`` [s]: the release time fitted to the start of the motion.
+    - ``index``: the last sample of the initial plateau, before the signal departs from it.
+    - ``level`` [m]: the displacement at the release: the fitted plateau level when
+      ``held``, else the first sample.
+    - ``sigma`` [m]: the noise standard deviation used; ``threshold`` [m]: the departure
+      threshold (``RELEASE_SIGMAS`` sigma).
+    - ``held``: the trace starts with a hold (or a clock offset): ``estimate`` lies more
+      than 3 sample steps after the first sample.
+    """
+
+    time: float
+    estimate: float
+    index: int
+    level: float
+    sigma: float
+    threshold: float
+    held: bool
+
+    def as_dict(self) -> dict:
+        """JSON-ready, keys with their units."""
+        return {"release_time_s": self.time, "estimate_s": self.estimate,
+                "plateau_last_index": self.index, "level_m": self.level,
+                "noise_sigma_m": self.sigma, "threshold_m": self.threshold,
+                "held": self.held}
+
+
+def detect_release(trace: DecayTrace, *, sigmas: float = RELEASE_SIGMAS) -> Release:
+    r"""Find where the free vibration of a decay trace starts (a :class:`Release`).
+
+    Lab traces often start before the release: the structure held at its initial
+    displacement (noisy samples about a constant), or a logger clock that does not start
+    at 0. The detection, in three steps:
+
+    1. **Noise.** $\sigma$ = 1.4826 MAD of the second differences $/\sqrt6$ (white noise
+       of std $\sigma$ gives second differences of std $\sqrt6\,\sigma$; the smooth motion
+       adds little at usual rates); when 10 samples or more precede the release found
+       with it (a hold), the robust spread (1.4826 MAD) of those, and steps 2-3 again.
+    2. **Plateau.** From the first sample up to the last one before the first run of 3
+       samples that all lie more than `sigmas` $\sigma$ from the plateau's median (iterated:
+       a single spike does not end it).
+    3. **Release time.** A structure released at rest starts as
+       $u = u_0 - c\,(t - t_0)^2$: that hinge (constant, then parabola) is fitted by least
+       squares to the end of the plateau and the start of the motion (up to a departure of
+       max(4 threshold, 10 % of $u_0$)), $t_0$ on a grid of 1/20 step, $u_0$ and $c$
+       linear. Unlike the last plateau sample, which lags by the time the motion takes to
+       exceed the noise, this is not biased late.
+
+    The trace starts with a hold when the release lies more than 3 steps after the first
+    sample; otherwise it is taken to start at the release (``time`` = ``t[0]``, ``level`` =
+    ``u[0]``).
+    """
+    t, u = np.asarray(trace.t), np.asarray(trace.u)
+    dt = float(np.median(np.diff(t)))
+    sigma = _noise_sigma(u)
+    k, level, thr = _plateau(u, sigma, sigmas)
+    est, fitted_level = _hinge_fit(t, u, k, level, thr)
+    plat = u[t < est - dt]  # the hold, if any: its spread is the noise
+    if plat.size >= MIN_SAMPLES:
+        s_plat = 1.4826 * float(np.median(np.abs(plat - np.median(plat))))
+        if s_plat > 0:
+            sigma = s_plat
+            k, level, thr = _plateau(u, sigma, sigmas)
+            est, fitted_level = _hinge_fit(t, u, k, level, thr)
+    held = bool(est - t[0] > _HOLD_STEPS * dt)
+    return Release(time=est if held else float(t[0]), estimate=est, index=k,
+                   level=fitted_level if held else float(u[0]), sigma=sigma,
+                   threshold=thr, held=held)
+
+
+def _noise_sigma(u: np.ndarray) -> float:
+    """Noise std from the robust spread of the second differences."""
+    d2 = np.diff(u, 2)
+    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+
+
+def _plateau(u: np.ndarray, sigma: float, sigmas: float) -> tuple[int, float, float]:
+    """(last index of the initial plateau, its median, the departure threshold)."""
+    n = u.size
+    thr = max(sigmas * sigma, 1e-9 * float(np.max(np.abs(u))))
+    level = float(np.median(u[: min(5, n)]))
+    k = 0
+    for _ in range(8):
+        out = np.abs(u - level) > thr
+        run = np.ones(n - _PERSIST + 1, bool)
+        for j in range(_PERSIST):
+            run &= out[j : n - _PERSIST + 1 + j]
+        starts = np.flatnonzero(run)
+        k = max(int(starts[0]) - 1, 0) if starts.size else n - 1
+        new = float(np.median(u[: k + 1]))
+        if new == level:
+            break
+        level = new
+    return k, level, thr
+
+
+def _hinge_fit(t: np.ndarray, u: np.ndarray, k: int, level: float,
+               thr: float) -> tuple[float, float]:
+    """(release time, level) of the least-squares hinge u = L - c max(t - t_r, 0)^2 over
+    the end of the plateau and the start of the motion (see `detect_release`)."""
+    n = u.size
+    reach = max(4.0 * thr, 0.1 * abs(level))
+    beyond = np.flatnonzero(np.abs(u[k + 1 :] - level) > reach)
+    e = min(k + 1 + (int(beyond[0]) + 1 if beyond.size else n), n)  # window end
+    e = max(e, min(k + 4, n))
+    w0 = max(0, k + 1 - max(20, 2 * (e - k - 1)))  # some of the plateau, not all of it
+    tw, uw = t[w0:e], u[w0:e]
+    dt = float(np.median(np.diff(t)))
+    lo, hi = float(tw[0]) - 2 * dt, float(t[min(k + 1, n - 1)])
+    cand = np.linspace(lo, hi, int(min(4000, max(2, 20 * (hi - lo) / dt))))
+    q = np.maximum(tw[None, :] - cand[:, None], 0.0) ** 2  # (candidates, window)
+    qc = q - q.mean(axis=1, keepdims=True)
+    uc = uw - uw.mean()
+    var_q = np.sum(qc**2, axis=1)
+    cov = qc @ uc
+    ok = var_q > 0
+    gain = np.where(ok, cov**2 / np.where(ok, var_q, 1.0), -np.inf)  # RSS reduction
+    if not np.any(ok):
+        return float(t[k]), level
+    i = int(np.argmax(gain))
+    c = -cov[i] / var_q[i]
+    return float(cand[i]), float(uw.mean() + c * q[i].mean())

@@ -40,9 +40,22 @@ def test_fit_json_is_one_object_and_nothing_else(clean_fit):
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)  # the whole of stdout is one JSON object
     assert isinstance(out, dict)
-    for key in ("values", "stderr", "loss", "converged", "correlation", "warnings"):
+    for key in ("values", "stderr", "loss", "converged", "correlation", "warnings", "units",
+                "model", "trace", "release", "t0_used_s"):
         assert key in out
-    assert set(out["values"]) == set(out["stderr"]) == {"k_f", "r"}
+    # the default parameters: k_f, r and the release state u0, t0
+    assert set(out["values"]) == set(out["stderr"]) == {"k_f", "r", "u0", "t0"}
+    # what produced the numbers: model, impact rule, the start of r; what was read
+    assert out["model"] == {"model": "simplified", "impact": "paper",
+                            "r": "fitted, start 0.7354 (Eq 3)", "start_k_f_N_m": 550000.0,
+                            "start_r": pytest.approx(0.73544107)}
+    tr = out["trace"]
+    assert tr["units_in_file"] == {"t": "s", "u": "m", "uplift": "m"}
+    assert tr["units_from"] == {"t": "assumed SI", "u": "assumed SI", "uplift": "assumed SI"}
+    assert (tr["n_points"], tr["dt_s"], tr["duration_s"]) == (1601, 0.005, 8.0)
+    assert tr["max_abs_u_m"] == 0.1 and tr["dropped_nan_rows"] == 0
+    assert out["release"]["held"] is False and out["release"]["release_time_s"] == 0.0
+    assert out["units"]["k_f"] == "N/m" and out["units"]["rms_residual"] == "m"
     # no progress bar and no Python warning text with --json
     assert "fit_decay" not in r.stderr and "Warning" not in r.stderr
     assert (d / "fit.png").stat().st_size > 10_000
@@ -110,6 +123,8 @@ def test_demo_writes_identification_plot_and_table(demo):
 
 
 VALID = "t,u\n" + "".join(f"{0.01 * i:.2f},{0.1 * (1 - i / 20):.4f}\n" for i in range(20))
+MM = "t,u\n" + "".join(f"{0.01 * i:.2f},{100 * (1 - i / 20):.4f}\n" for i in range(20))
+NAN = VALID.replace("0.05,0.0750", "0.05,nan")
 SOFT = "[structure]\nm_e=1.0\nm_b=1.0\nH_e=1.0\nH_b=0.1\nB=0.3\nI_eg=0.0\nI_bg=0.0\nk_f=10.0\n"
 
 
@@ -117,7 +132,24 @@ SOFT = "[structure]\nm_e=1.0\nm_b=1.0\nH_e=1.0\nH_b=0.1\nB=0.3\nI_eg=0.0\nI_bg=0
     "args, files, match",
     [
         (["fit", "missing.csv"], {}, "not found"),
-        (["fit", "bad.csv"], {"bad.csv": "time,disp\n0,0.1\n"}, "expected header"),
+        (["fit", "bad.csv"], {"bad.csv": "time,disp,temp\n0,0.1,3\n"},
+         "column 'temp' is not a time, displacement or uplift column; name the columns with "
+         "--columns t=NAME,u=NAME"),
+        (["fit", "mm.csv"], {"mm.csv": MM},
+         "max |u| = 100 m is beyond u_overturn = 0.375 m of the structure, where it would "
+         "overturn (u read in m, assumed SI): is the trace in mm? give units in the header, "
+         "such as t,u_mm, or pass --units u=mm"),
+        (["fit", "nan.csv"], {"nan.csv": NAN},
+         "nan.csv, line 7: column 'u': missing value 'nan' (NaN); 1 row(s) of the file have "
+         "missing values (line(s) 7); pass --drop-nan to drop them"),
+        (["fit", "nan.csv", "--drop-nan"], {"nan.csv": MM.replace(",75.0000", ",nan")},
+         "max |u| = 100 m"),  # read past the dropped NaN row, then refused
+        (["fit", "tr.csv", "--units", "u=furlong"], {"tr.csv": VALID},
+         "--units u=furlong: unknown unit; expected one of m, cm, mm"),
+        (["fit", "tr.csv", "--units", "u"], {"tr.csv": VALID}, "CHANNEL=VALUE"),
+        (["fit", "tr.csv", "--columns", "t=zeit,u=u"], {"tr.csv": VALID},
+         "no column 'zeit' in the header"),
+        (["fit", "tr.csv", "--r", "1.0"], {"tr.csv": VALID}, "--r must lie strictly inside"),
         (["fit", "bad.csv"], {"bad.csv": VALID.replace("0.05,", "0.05,abc,")}, "line 7"),
         (["fit", "bad.csv"], {"bad.csv": VALID.replace("0.05,", "0.03,")}, "line 7"),
         (["fit", "short.csv"], {"short.csv": "t,u\n0,0.1\n0.01,0.09\n"}, "at least 10"),
@@ -164,5 +196,6 @@ def test_fit_error_in_subprocess_has_no_traceback(tmp_path):
 def test_fit_help_lists_options():
     r = run_cli("fit", "--help")
     assert r.returncode == 0
-    for opt in ("--structure", "--params", "--model", "--starts", "--plot", "--json"):
+    for opt in ("--structure", "--params", "--model", "--impact", "--r", "--columns",
+                "--units", "--drop-nan", "--starts", "--plot", "--json"):
         assert opt in r.stdout

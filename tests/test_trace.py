@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import identification
 import rockjax
 from identification._trace import (
     DecayTrace,
@@ -158,9 +159,20 @@ def test_read_good_str_path(tmp_path):
 
 BAD = {
     # name: (lines, line number in the message, regex for the rest)
-    "bad_header": (["# c", "time,disp,up", *_rows(10)], 2, r"expected header 't,u' or"),
+    "bad_header": (["# c", "time,disp,up", *_rows(10)], 2,
+                   r"expected header 't,u' or.*column 'up' is not a time, displacement or "
+                   r"uplift column; name the columns with columns="),
+    "two_time_columns": (["t,time,u", *_rows(10)], 1, "two time columns"),
+    "no_displacement": (["t,uplift", *_rows(10, ncol=2)], 1, "no displacement column"),
+    "unknown_unit": (["t,u [inch]", *_rows(10, ncol=2)], 1,
+                     r"column 'u \[inch\]': 'inch' is not a unit of length \(expected one of m,"),
+    "time_in_mm": (["t_mm,u", *_rows(10, ncol=2)], 1, "'mm' is not a unit of time"),
     "no_header": (_rows(12), 1, r"expected header"),
-    "nan": (["t,u,uplift", *_rows(4), "0.04,nan,0.0", *_rows(6, t0=0.05)], 6, "not finite"),
+    "nan": (["t,u,uplift", *_rows(4), "0.04,nan,0.0", *_rows(6, t0=0.05)], 6,
+            r"column 'u': missing value 'nan' \(NaN\); 1 row\(s\) of the file have missing "
+            r"values \(line\(s\) 6\); pass drop_nan=True to drop them"),
+    "inf_text": (["t,u,uplift", *_rows(4), "0.04,inf,0.0", *_rows(6, t0=0.05)], 6,
+                 "value 'inf' is not finite"),
     "inf": (["t,u,uplift", *_rows(4), "0.04,0.0,-inf", *_rows(6, t0=0.05)], 6, "not finite"),
     "backwards": (
         ["t,u,uplift", *_rows(5), "0.02,0.0,0.0", *_rows(6, t0=0.05)],
@@ -261,3 +273,147 @@ def test_decaytrace_bad_source():
     t, u, _ = _good()
     with pytest.raises(ValueError, match=r"DecayTrace\.source"):
         DecayTrace(t, u, source=3)
+
+
+# ------------------------------------------------------------- units, columns, missing values
+def _trace_lines(header, n=12, scale_t=1.0, scale_u=1.0, extra=None):
+    """A header and `n` rows of t = 0.01 i s, u = 0.1 * 0.9^i m (and uplift = u / 2),
+    written in the given scales (e.g. 1e3 for ms or mm); `extra` adds a text column."""
+    out = [header]
+    for i in range(n):
+        vals = [f"{0.01 * i * scale_t:.10g}", f"{0.1 * 0.9**i * scale_u:.10g}",
+                f"{0.05 * 0.9**i * scale_u:.10g}"]
+        ncol = len(header.split(",")) - (extra is not None)
+        row = vals[:ncol] + ([extra] if extra is not None else [])
+        out.append(",".join(row))
+    return out
+
+
+@pytest.mark.parametrize(
+    "header, scale_t, scale_u, units",
+    [
+        ("time_s,disp_mm", 1.0, 1e3, {"t": "s", "u": "mm"}),
+        ("t [s],u [mm]", 1.0, 1e3, {"t": "s", "u": "mm"}),
+        ("t(ms),u(cm),uplift(cm)", 1e3, 1e2, {"t": "ms", "u": "cm", "uplift": "cm"}),
+        ("Time (s), Displacement (mm), Uplift [mm]", 1.0, 1e3,
+         {"t": "s", "u": "mm", "uplift": "mm"}),
+        ("t_ms,u_m", 1e3, 1.0, {"t": "ms", "u": "m"}),
+        ("u_mm,t", 1.0, 1e3, {"t": "s", "u": "mm"}),  # any order; t without a unit: SI
+        ("t,u[um]", 1.0, 1e6, {"t": "s", "u": "um"}),
+    ],
+)
+def test_read_units_in_header(tmp_path, header, scale_t, scale_u, units):
+    lines = _trace_lines(header, scale_t=scale_t, scale_u=scale_u)
+    if header.startswith("u_mm"):  # the columns swapped: u first
+        lines = [header] + [",".join(row.split(",")[::-1]) for row in lines[1:]]
+    p = _write(tmp_path, "units.csv", lines)
+    tr = read_trace(p)
+    np.testing.assert_allclose(tr.t, 0.01 * np.arange(12), rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(tr.u, 0.1 * 0.9 ** np.arange(12), rtol=1e-9)
+    if "uplift" in units:
+        np.testing.assert_allclose(tr.uplift, 0.05 * 0.9 ** np.arange(12), rtol=1e-9)
+    assert dict(tr.units) == units
+    cells = [c.strip() for c in header.split(",")]
+    assert set(tr.columns.values()) == set(cells)
+    assert tr.units_from["u"] == "header"
+    info = tr.info()
+    assert info["units_in_file"] == units and info["n_points"] == 12
+    assert info["dt_s"] == pytest.approx(0.01) and info["duration_s"] == pytest.approx(0.11)
+    assert info["max_abs_u_m"] == pytest.approx(0.1) and info["file"] == str(p)
+
+
+def test_read_columns_and_units_arguments(tmp_path):
+    # extra columns (a text column among them) are ignored when the columns are named
+    lines = ["index,time_s,disp_mm,comment"]
+    lines += [f"{i},{0.01 * i:g},{100 * 0.9**i:.10g},ok {i}" for i in range(12)]
+    p = _write(tmp_path, "named.csv", lines)
+    with pytest.raises(ValueError, match="column 'index' is not a time"):
+        read_trace(p)
+    tr = read_trace(p, columns={"t": "TIME_S", "u": "disp_mm"})
+    np.testing.assert_allclose(tr.u, 0.1 * 0.9 ** np.arange(12), rtol=1e-9)
+    assert dict(tr.columns) == {"t": "time_s", "u": "disp_mm"} and tr.uplift is None
+    assert dict(tr.units) == {"t": "s", "u": "mm"}
+    # units for a header without them
+    p2 = _write(tmp_path, "plain.csv", _trace_lines("t,u", scale_u=1e3))
+    tr2 = read_trace(p2, units={"u": "mm"})
+    np.testing.assert_allclose(tr2.u, tr.u, rtol=1e-12)
+    assert tr2.units_from == {"t": "assumed SI", "u": "units argument"}
+    assert read_trace(p2).units_from["u"] == "assumed SI"
+    # the same unit twice is fine, a contradiction is refused
+    assert read_trace(p, columns={"t": "time_s", "u": "disp_mm"}, units={"u": "mm"}).n == 12
+    with pytest.raises(ValueError, match=r"'disp_mm' is in mm, but the units given say m"):
+        read_trace(p, columns={"t": "time_s", "u": "disp_mm"}, units={"u": "m"})
+    with pytest.raises(ValueError, match=r"no column 'zeit' in the header \(its columns: "):
+        read_trace(p, columns={"t": "zeit", "u": "disp_mm"})
+    with pytest.raises(ValueError, match=r"units\['u'\]: unknown unit 'furlong'"):
+        read_trace(p2, units={"u": "furlong"})
+    with pytest.raises(ValueError, match="columns must name the columns of 't' and 'u'"):
+        read_trace(p, columns={"u": "disp_mm"})
+
+
+def test_missing_values_refused_or_dropped(tmp_path):
+    lines = _trace_lines("t,u,uplift", n=15)
+    lines[4] = "0.03,,0.01"
+    lines[9] = "0.08,NaN,0.01"
+    lines[12] = "NA,0.02,0.01"
+    p = _write(tmp_path, "gaps.csv", lines)
+    with pytest.raises(ValueError, match=_at(p, 5) + r" column 'u': missing value '' \(NaN\); "
+                       r"3 row\(s\) of the file have missing values \(line\(s\) 5, 10, 13\); "
+                       r"pass drop_nan=True to drop them") as e:
+        read_trace(p)
+    assert "pass --drop-nan to drop them" in e.value.cli_message
+    with pytest.warns(identification.DroppedRowsWarning,
+                      match=re.escape(f"{p}: dropped 3 row(s) with missing (NaN) values "
+                                      "(line(s) 5, 10, 13)")):
+        tr = read_trace(p, drop_nan=True)
+    assert tr.n == 12 and tr.dropped_lines == (5, 10, 13)
+    assert tr.info()["dropped_nan_rows"] == 3
+    assert np.all(np.isfinite(tr.u))
+
+
+# ------------------------------------------------------------------------------ release
+def _noisy_shipped():
+    return read_trace(synthetic_trace_path("synthetic_decay_noisy"))
+
+
+def _with_hold(tr, seconds, seed=0, sigma=5e-4, u0=0.1):
+    """The trace with `seconds` of noisy samples held at u0 before its first sample."""
+    rng = np.random.default_rng(seed)
+    n = int(round(seconds / tr.dt))
+    t = np.concatenate([tr.t[0] + tr.dt * np.arange(n), tr.t + n * tr.dt])
+    u = np.concatenate([u0 + rng.normal(0.0, sigma, n), tr.u])
+    return DecayTrace(t, u), tr.t[0] + n * tr.dt
+
+
+def test_release_of_traces_that_start_at_it():
+    for name in SYNTHETIC_TRACES:
+        tr = read_trace(synthetic_trace_path(name))
+        rel = identification.detect_release(tr)
+        assert not rel.held and rel.time == 0.0 and rel.level == tr.u[0], (name, rel)
+        assert abs(rel.estimate) < 0.015
+    noisy = _noisy_shipped()
+    rel = identification.detect_release(noisy)
+    assert rel.sigma == pytest.approx(5e-4, rel=0.2)  # the true noise std
+    # a logger clock that starts at 2.5 s: t0 is the first sample, not 0
+    shifted = DecayTrace(noisy.t + 2.5, noisy.u)
+    assert identification.detect_release(shifted).time == 2.5
+
+
+@pytest.mark.parametrize("seconds", [0.05, 1.0, 3.0])
+def test_release_after_a_hold(seconds):
+    tr, t_release = _with_hold(_noisy_shipped(), seconds)
+    rel = identification.detect_release(tr)
+    assert rel.held, rel
+    assert abs(rel.time - t_release) < 0.015, (rel, t_release)  # 3 samples at 200 Hz
+    assert rel.level == pytest.approx(0.1, abs=3e-4)
+    assert rel.sigma == pytest.approx(5e-4, rel=0.2)
+    d = rel.as_dict()
+    assert d["release_time_s"] == rel.time and d["held"] is True
+
+
+def test_release_not_fooled_by_a_spike_in_the_hold():
+    tr, t_release = _with_hold(_noisy_shipped(), 1.0, seed=3)
+    u = tr.u.copy()
+    u[50] += 0.02  # one 40-sigma spike during the hold
+    rel = identification.detect_release(DecayTrace(tr.t, u))
+    assert abs(rel.time - t_release) < 0.015, rel

@@ -1,4 +1,4 @@
-"""`rockjax fit`: fit k_f and r (and u0, t0) to a measured free-vibration decay trace.
+"""`rockjax fit`: fit k_f, r, u0 and t0 to a measured free-vibration decay trace.
 
 `identification` (optax and the fit's JAX code) is imported inside the functions that need
 it, so that `rockjax --help` and the other commands do not pay for it.
@@ -6,6 +6,7 @@ it, so that `rockjax --help` and the other commands do not pay for it.
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import pathlib
@@ -15,23 +16,58 @@ import numpy as np
 
 from rockjax import _plotting
 
-from ._common import _check_png, _load_structure, _starts, CLIError
+from ._common import (
+    _check_png,
+    _load_structure,
+    _starts,
+    add_model_arguments,
+    CLIError,
+    model_info,
+    model_line,
+)
 
 _FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s"}
+_PARAMS = ("k_f", "r", "u0", "t0")
+_CHANNELS = ("t", "u", "uplift")
+
+
+def _channel_map(option):
+    """--columns / --units: "t=NAME,u=NAME[,uplift=NAME]" -> dict."""
+
+    def conv(text):
+        out = {}
+        for item in text.split(","):
+            key, sep, value = item.partition("=")
+            key, value = key.strip(), value.strip()
+            if not sep or not value or key not in _CHANNELS:
+                raise argparse.ArgumentTypeError(
+                    f"{option} takes CHANNEL=VALUE pairs separated by commas, channels "
+                    f"{', '.join(_CHANNELS)}, such as t=time_s,u=disp_mm; got {text!r}"
+                )
+            if key in out:
+                raise argparse.ArgumentTypeError(f"{option}: {key} given twice in {text!r}")
+            out[key] = value
+        return out
+
+    return conv
 
 
 def add_parser(subparsers):
     f = subparsers.add_parser(
         "fit",
-        help="fit k_f and r (and u0, t0) to a measured free-vibration decay trace",
-        description="Fit the foundation stiffness k_f and the coefficient of restitution r "
-        "(optionally the release displacement u0 and time t0) of a structure to a "
-        "free-vibration decay trace: a CSV file with header 't,u' or 't,u,uplift' (SI "
-        "units: s, m, m; leading '#' comment lines allowed). The fit starts from the "
-        "structure's k_f and its Eq 3 restitution and reports standard errors, the k_f-r "
-        "correlation and identifiability warnings.",
+        help="fit k_f, r, u0 and t0 to a measured free-vibration decay trace",
+        description="Fit the foundation stiffness k_f, the coefficient of restitution r, "
+        "the release displacement u0 and the release time t0 of a structure to a "
+        "free-vibration decay trace: a CSV file with a header such as 't,u', 't,u,uplift', "
+        "'time_s,disp_mm' or 't [s],u [mm],uplift [mm]' (units s, ms, us, min; m, cm, mm, "
+        "um, in; none: SI; leading '#' comment lines allowed). The trace may start before "
+        "the release (a hold at u0, or any clock): the release is detected and t0 fitted "
+        "from there. The fit starts from the structure's k_f and its Eq 3 restitution and "
+        "reports standard errors, the k_f-r correlation, identifiability warnings, and "
+        "what was read.",
     )
-    f.add_argument("trace", metavar="TRACE.csv", help="decay trace (t,u[,uplift])")
+    f.add_argument("trace", metavar="TRACE.csv", help="decay trace (time, displacement, "
+                   "optional uplift)")
     f.add_argument(
         "--structure",
         metavar="FILE.toml",
@@ -40,17 +76,27 @@ def add_parser(subparsers):
     f.add_argument(
         "--params",
         nargs="+",
-        choices=["k_f", "r", "u0", "t0"],
-        default=["k_f", "r"],
+        choices=list(_PARAMS),
+        default=list(_PARAMS),
         metavar="P",
-        help="parameters to fit, from k_f r u0 t0 (default: k_f r)",
+        help="parameters to fit, from k_f r u0 t0 (default: all four); the others are held "
+        "at the structure's values (k_f, Eq 3 r or --r) and the detected release (u0, t0)",
+    )
+    add_model_arguments(f, "restoring-force model (default simplified)")
+    f.add_argument(
+        "--columns",
+        type=_channel_map("--columns"),
+        metavar="t=NAME,u=NAME[,uplift=NAME]",
+        help="the columns to read, by header name (other columns are ignored)",
     )
     f.add_argument(
-        "--model",
-        choices=["simplified", "exact", "smooth", "housner"],
-        default="simplified",
-        help="restoring-force model (default simplified)",
+        "--units",
+        type=_channel_map("--units"),
+        metavar="t=UNIT,u=UNIT[,uplift=UNIT]",
+        help="units of columns whose header states none, such as u=mm (default SI)",
     )
+    f.add_argument("--drop-nan", action="store_true",
+                   help="drop rows with missing (NaN) values, with a warning (default: refuse)")
     f.add_argument(
         "--starts",
         type=_starts,
@@ -65,14 +111,18 @@ def add_parser(subparsers):
     return f
 
 
-def _fit_trace(trace, structure, params, *, model="simplified", starts=None, progress=None):
-    """`identification.fit_decay` from the structure's k_f and Eq-3 r. IdentifiabilityWarnings
-    are captured (their messages are in `fit.warnings`, printed by the caller), other
-    warnings are passed on."""
+def _fit_trace(trace, structure, params, *, model="simplified", impact="paper", r=None,
+               starts=None, progress=None):
+    """`identification.fit_decay` from the structure's k_f and r (Eq 3, or `r`: also its
+    held value when r is not fitted). IdentifiabilityWarnings and OutlierWarnings are
+    captured (their messages are in `fit.warnings`, printed by the caller), other warnings
+    are passed on."""
     import identification  # heavy (optax, the fit's JAX code): only when a fit runs
 
-    initial = {"k_f": float(structure.k_f), "r": float(structure.restitution)}
-    initial = {k: v for k, v in initial.items() if k in params}
+    initial = {"k_f": float(structure.k_f),
+               "r": float(structure.restitution) if r is None else float(r)}
+    if r is None:
+        initial = {k: v for k, v in initial.items() if k in params}
     kwargs = {} if starts is None else {"starts": starts}
     with warnings.catch_warnings(record=True) as caught:
         shown = (identification.IdentifiabilityWarning, identification.OutlierWarning)
@@ -83,6 +133,7 @@ def _fit_trace(trace, structure, params, *, model="simplified", starts=None, pro
             structure,
             params=tuple(params),
             model=model,
+            impact=impact,
             initial=initial,
             progress=progress,
             **kwargs,
@@ -165,27 +216,98 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
     return fig
 
 
-def _print_report(args, s, trace, fit, params):
-    print(
-        f"trace         {args.trace}: {trace.n} samples over {trace.duration:.4g} s"
-        f"{', with uplift' if trace.uplift is not None else ''}"
+def _fit_model_info(args, s, params):
+    """`model_info(args)` for a fit: r is fitted (from Eq 3 or --r) or held."""
+    info = model_info(args)
+    r0 = float(s.restitution) if args.r is None else float(args.r)
+    src = "Eq 3" if args.r is None else "--r"
+    info["r"] = (f"fitted, start {r0:.4g} ({src})" if "r" in params
+                 else f"held at {r0:.4g} ({src})")
+    info["start_k_f_N_m"] = float(s.k_f)
+    info["start_r"] = r0
+    return info
+
+
+def trace_lines(info):
+    """`DecayTrace.info()` as lines of text: the columns and units read, dt, points,
+    duration, amplitude, rows dropped."""
+    chans = ", ".join(
+        f"{ch} = column {info['columns'].get(ch, ch)!r} in {unit} ({info['units_from'][ch]})"
+        for ch, unit in info["units_in_file"].items()
     )
-    print(
-        f"model         {args.model}; start k_f = {float(s.k_f):.6g} N/m, "
-        f"r = {float(s.restitution):.4f} (Eq 3)"
-    )
+    out = [
+        f"{info['file']}: {chans}",
+        f"dt {info['dt_s']:.6g} s, {info['n_points']} points, {info['duration_s']:.6g} s "
+        f"(t = {info['t_start_s']:.6g} .. {info['t_end_s']:.6g} s), "
+        f"max |u| {info['max_abs_u_m']:.4g} m",
+    ]
+    if info["dropped_nan_rows"]:
+        out.append(f"{info['dropped_nan_rows']} row(s) with missing values dropped (--drop-nan)")
+    return out
+
+
+def release_line(fit):
+    """Where the release was found, and the t0 the fit used."""
+    rel = fit.release
+    if rel["held"]:
+        found = (f"detected at t = {rel['release_time_s']:.6g} s, after a hold at "
+                 f"u = {rel['level_m']:.6g} m (noise sigma {rel['noise_sigma_m']:.3g} m)")
+    else:
+        found = (f"at the first sample, t = {rel['release_time_s']:.6g} s (no hold before "
+                 "the motion)")
+    if "t0" in fit.values:
+        used = f"t0 fitted from there: {fit.values['t0']:.6g} s"
+    else:
+        used = f"t0 held there: {fit.fixed['t0']:.6g} s"
+    return f"{found}; {used}"
+
+
+def _print_report(args, s, trace, fit, params, info, read_warnings):
+    lines = trace_lines(trace.info())
+    print(f"trace         {lines[0]}")
+    for line in lines[1:]:
+        print(f"              {line}")
+    print(f"release       {release_line(fit)}")
+    print(f"model         {model_line(info)}; start k_f = {float(s.k_f):.6g} N/m")
     print()
     print(_fit_value_table(fit))
     print()
+    for w in read_warnings:
+        print(f"warning: {w}")
     for line in _fit_stats_lines(fit):
         print(line)
     if "u0" not in params:
         print(
-            f"note: u0 held at the first measured sample ({fit.fixed['u0']:.6g} m); "
-            "for noisy traces add u0 to --params"
+            f"note: u0 held at {fit.fixed['u0']:.6g} m (the first sample, or the level of "
+            "the hold); for noisy traces fit it (the default --params)"
         )
     if args.plot:
         print(f"plot written to {args.plot}")
+
+
+def _read(args):
+    """The trace, and the messages of the warnings of reading it; TraceErrors in the command
+    line's terms."""
+    import identification
+
+    units = args.units or {}
+    for ch, unit in units.items():
+        table = identification.TIME_UNITS if ch == "t" else identification.LENGTH_UNITS
+        if unit.lower() not in table:
+            raise CLIError(f"--units {ch}={unit}: unknown unit; expected one of "
+                           f"{', '.join(table)}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", identification.DroppedRowsWarning)
+        try:
+            trace = identification.read_trace(args.trace, columns=args.columns,
+                                              units=args.units, drop_nan=args.drop_nan)
+        except identification.TraceError as e:
+            raise CLIError(e.cli_message) from None
+    for w in caught:
+        if not issubclass(w.category, identification.DroppedRowsWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return trace, [str(w.message) for w in caught
+                   if issubclass(w.category, identification.DroppedRowsWarning)]
 
 
 def run(args):
@@ -195,23 +317,27 @@ def run(args):
     params = tuple(args.params)
     if len(set(params)) != len(params):
         raise CLIError(f"--params: each parameter at most once, got {' '.join(params)}")
+    if args.r is not None and not 0.0 < args.r < 1.0:
+        raise CLIError(f"--r must lie strictly inside (0, 1) for a fit, got {args.r}")
     s = _load_structure(args.structure)
-    trace = identification.read_trace(args.trace)
-    fit = _fit_trace(
-        trace,
-        s,
-        params,
-        model=args.model,
-        starts=args.starts,
-        progress=False if args.json else None,
-    )
+    trace, read_warnings = _read(args)
+    info = _fit_model_info(args, s, params)
+    try:
+        fit = _fit_trace(trace, s, params, model=args.model, impact=args.impact, r=args.r,
+                         starts=args.starts, progress=False if args.json else None)
+    except identification.TraceError as e:
+        raise CLIError(e.cli_message) from None
     if args.plot:
         fig = plot_fit(
-            trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, {args.model} model"
+            trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, {model_line(info)}"
         )
         fig.savefig(args.plot, dpi=150)
     if args.json:
-        print(json.dumps(fit.summary()))
+        summary = fit.summary()
+        summary["warnings"] = read_warnings + summary["warnings"]
+        t0 = fit.values.get("t0", fit.fixed.get("t0"))
+        print(json.dumps({"file": str(args.trace), "model": info, "trace": trace.info(),
+                          **summary, "t0_used_s": t0}))
         return 0
-    _print_report(args, s, trace, fit, params)
+    _print_report(args, s, trace, fit, params, info, read_warnings)
     return 0

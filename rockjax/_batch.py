@@ -484,6 +484,8 @@ def simulate_batch(
     check_settings(method=method, rtol=rtol, atol=atol, max_impacts=max_impacts, dt=dt,
                    substeps=substeps)
     model = get_model(model, impact)
+    if isinstance(excitation, Record):  # one record, e.g. rockjax.datasets.el_centro()
+        excitation = GroundMotion.from_record(excitation)
     N, members, table, free, suite = _resolve(structure, excitation, scale, r, u0, v0, record,
                                               t1, tail)
     t_last = float(np.max(members["t_end"]))

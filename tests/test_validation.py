@@ -87,6 +87,9 @@ FILES = {
     # records
     "good.txt": "Accel[g]\n0 0.1\n0.01 0.2\n0.02 0.3\n",
     "slow.txt": "Accel[g]\n0 0.1\n0.02 0.2\n0.04 0.3\n",
+    "odd.txt": "Accel[g]\n0 0.1\n0.0073 0.2\n0.0146 0.3\n",
+    "unitsg.at2": "title\ndate\nUNITS OF G\nNPTS= 3, DT= .01 SEC\n1 2 3\n",
+    "recdir/notes.md": "no records here\n",
     "empty.txt": "",
     "header_only.txt": "Accel[g]\nno data in this file\n",
     "nan.txt": "Accel[g]\n0 0.1\n0.01 nan\n0.02 0.1\n",
@@ -117,7 +120,14 @@ FILES = {
     "text.csv": _csv(ROWS[:5] + [(ROWS[5][0], "abc")] + ROWS[6:]),
     "gap.csv": _csv(zip(T_GAP, U20)),
     "noheader.csv": _csv(ROWS, header=None),
-    "wronghdr.csv": _csv(ROWS, header="time,disp"),
+    "wronghdr.csv": _csv(ROWS, header="time,disp,temp"),
+    "twotime.csv": _csv([(t, t, u) for t, u in ROWS], header="t,time,u"),
+    "noU.csv": _csv(ROWS, header="t,uplift"),
+    "inch.csv": _csv(ROWS, header="t,u [inch]"),
+    "tmm.csv": _csv(ROWS, header="t_mm,u"),
+    "dispmm.csv": _csv(ROWS, header="t,disp_mm"),
+    "big.csv": _csv([(t, 1000.0 * u) for t, u in ROWS]),
+    "lab.csv": _csv(ROWS, header="time_s,disp_mm"),
     "onecol.csv": _csv([(t,) for t, _ in ROWS], header="t"),
     "missingcol.csv": _csv(ROWS[:3] + [(ROWS[3][0],)] + ROWS[4:]),
     "upl.csv": _csv(ROWS, header="t,u,uplift"),
@@ -131,6 +141,7 @@ def d(tmp_path_factory) -> pathlib.Path:
     """A folder holding every file above, a sub-folder `adir`, and a non-UTF-8 TOML."""
     root = tmp_path_factory.mktemp("validation")
     for name, text in FILES.items():
+        (root / name).parent.mkdir(exist_ok=True)
         (root / name).write_text(text)
     (root / "latin1.toml").write_bytes(b"[structure]\nm_e = 1.0 # \xe9\xff\n")
     (root / "adir").mkdir()
@@ -200,8 +211,11 @@ def _rec(name, **kwargs):
     return lambda d: read_record(d / name, **kwargs)
 
 
-def _trace(name):
-    return lambda d: read_trace(d / name)
+def _trace(name, **kwargs):
+    return lambda d: read_trace(d / name, **kwargs)
+
+
+REC = Record(dt=0.01, accel=ACC)
 
 
 K_MIN = float(S.W * S.H_c / (2.0 * S.B**2))
@@ -277,6 +291,10 @@ API = [
     case("E6", "from_file", lambda d: GroundMotion.from_file(d / "good.txt", scale=INF),
          "scale must be finite"),
     # records
+    case("R24", "at2", _rec("unitsg.at2", units="m/s2"),
+         "the file states units g ('UNITS OF G' in its header) but units='m/s2' was given"),
+    case("R24", "columns", lambda d: GroundMotion.from_file(d / "good.txt", units="m/s2"),
+         "the file states units g"),
     case("R1", "missing", _rec("missing.at2"), "ground-motion record not found",
          FileNotFoundError),
     case("R2", "dir", _rec("adir"), "ground-motion record path is a directory",
@@ -433,6 +451,22 @@ API = [
          "dt applies to a free vibration"),
     case("B12", "dt-array", _batch(S, GroundMotion(dt=np.full(2, 0.01), accel=GM2.accel), 1.0),
          "the records of a batch must share one time step: dt must be a scalar"),
+    case("B15", "no-common-step", lambda d: simulate_batch(
+        S, [read_record(d / "good.txt"), read_record(d / "odd.txt")]),
+        "have no common step coarser than"),
+    case("B16", "tail-neg", _batch(S, [REC, REC], tail=-1.0),
+         "tail must be a finite number of seconds >= 0"),
+    case("B17", "tail-single", _batch(S, GM, 1.0, tail=1.0),
+         "tail applies to a sequence of records"),
+    case("B18", "t1-missing", _batch(S, GM), "t1 must be given"),
+    case("B19", "empty", _batch(S, []), "the sequence of records is empty"),
+    case("B20", "item", _batch(S, ["a.at2"]), "a sequence must hold Records or GroundMotions"),
+    case("B21", "multi", _batch(S, [GM2]), "must hold one record"),
+    case("B22", "u0", _batch(S, [GroundMotion(dt=0.01, accel=ACC, u0=0.01)]),
+         "has u0 or v0; pass u0=, v0= to simulate_batch"),
+    case("B23", "record", _batch(S, [REC, REC], record=np.array([0, 3])),
+         "record must hold integer indices into the 2 record(s) of the sequence"),
+    case("B24", "dt", _batch(S, [REC, REC], dt=0.01), "dt applies to a free vibration"),
     case("B13", "accel-3d", _batch(S, GroundMotion(dt=0.01, accel=np.zeros((2, 2, 10))), 1.0),
          "accel must be 1-D (one record) or 2-D"),
     case("B14", "impact-rule", _batch(S, GM, 1.0, impact="sometimes"), "impact must be one of"),
@@ -454,14 +488,27 @@ API = [
     case("T3", "empty", _trace("empty.csv"), "line 1: empty file; expected a header line"),
     case("T3", "comments", _trace("comments.csv"), "only comment lines"),
     case("T4", "wrong", _trace("wronghdr.csv"),
-         "line 1: expected header 't,u' or 't,u,uplift' (SI units: s, m, m), got 'time,disp'"),
+         "column 'temp' is not a time, displacement or uplift column"),
     case("T4", "none", _trace("noheader.csv"), "line 1: expected header 't,u'"),
     case("T4", "one-column", _trace("onecol.csv"), "line 1: expected header 't,u'"),
     case("T5", "missing-value", _trace("missingcol.csv"), "line 5: expected 2 values (t,u), got 1"),
     case("T5", "missing-uplift", _trace("upl.csv"),
          "line 2: expected 3 values (t,u,uplift), got 2"),
     case("T6", "text", _trace("text.csv"), "line 7: column 'u': 'abc' is not a number"),
-    case("T7", "nan", _trace("nan.csv"), "line 7: column 'u': value 'nan' is not finite"),
+    case("T7", "nan", _trace("nan.csv"),
+         "line 7: column 'u': missing value 'nan' (NaN); 1 row(s) of the file have missing"),
+    case("T13", "two-times", _trace("twotime.csv"), "two time columns in the header"),
+    case("T14", "no-u", _trace("noU.csv"), "no displacement column"),
+    case("T15", "inch", _trace("inch.csv"), "'inch' is not a unit of length"),
+    case("T15", "t-mm", _trace("tmm.csv"), "'mm' is not a unit of time"),
+    case("T16", "contradiction", _trace("dispmm.csv", units={"u": "m"}),
+         "column 'disp_mm' is in mm, but the units given say m for 'u'"),
+    case("T17", "unknown-unit", _trace("good.csv", units={"u": "furlong"}),
+         "unknown unit 'furlong'"),
+    case("T18", "no-column", _trace("lab.csv", columns={"t": "zeit", "u": "disp_mm"}),
+         "no column 'zeit' in the header"),
+    case("T19", "columns-u-only", _trace("lab.csv", columns={"u": "disp_mm"}),
+         "columns must name the columns of 't' and 'u'"),
     case("T7", "inf", _trace("inf.csv"), "column 'u': value 'inf' is not finite"),
     case("T7", "u-nan", lambda d: DecayTrace(T20, _nan_at(U20)),
          "DecayTrace.u: 1 non-finite value(s), first at index 3"),
@@ -575,11 +622,15 @@ CLI = [
     cli("R16", "simulate", ["simulate", "--record", "cm.at2"], "which are not supported"),
     cli("R18", "simulate", ["simulate", "--record", "nounits.txt"], "units of the acceleration"),
     cli("R18", "sweep", ["sweep", "--record", "nounits.txt"], "units of the acceleration"),
-    cli("R19", "simulate", ["simulate", "--record", "onecol.txt"], "pass dt=<time step in s>"),
+    cli("R19", "simulate", ["simulate", "--record", "onecol.txt"],
+        "pass --record-dt <time step in s>"),
+    cli("R24", "simulate", ["simulate", "--record", "unitsg.at2", "--units", "m/s2"],
+        "but --units m/s2 was given; omit --units or pass --units g"),
+    cli("R24", "sweep", ["sweep", "--record", "unitsg.at2:m/s2"], "but --units m/s2 was given"),
     cli("R20", "simulate", ["simulate", "--record", "onecol.txt", "--record-dt", "0"],
         "argument --record-dt: --record-dt must be a positive number"),
     cli("R21", "simulate", ["simulate", "--record", "good.txt", "--record-dt", "0.5"],
-        "dt=0.5 was passed"),
+        "--record-dt 0.5 was given but the file has a time step of 0.01 s"),
     # simulation parameters
     cli("M2", "simulate-t1-0", ["simulate", "--u0", "0.1", "--t1", "0"], "argument --t1"),
     cli("M2", "simulate-t1-inf", ["simulate", "--u0", "0.1", "--t1", "inf"], "argument --t1"),
@@ -594,15 +645,18 @@ CLI = [
     cli("M15", "simulate", SIM + ["--model", "fancy"], "argument --model: invalid choice"),
     cli("M15", "fit", ["fit", "good.csv", "--model", "fancy"], "argument --model: invalid"),
     cli("M15", "sweep", SWEEP + ["--model", "fancy"], "argument --model: invalid choice"),
-    cli("B12", "sweep", SWEEP + ["--record", "slow.txt"], "the records must share one time step"),
+    cli("B15", "sweep", SWEEP + ["--record", "odd.txt"], "have no common step coarser than"),
+    cli("B16", "sweep", SWEEP + ["--tail", "-1"], "argument --tail"),
     # traces
     cli("T1", "missing", ["fit", "missing.csv"], "decay trace file not found"),
     cli("T2", "dir", ["fit", "adir"], "not a regular file"),
     cli("T3", "empty", ["fit", "empty.csv"], "empty file"),
-    cli("T4", "header", ["fit", "wronghdr.csv"], "expected header 't,u' or 't,u,uplift'"),
+    cli("T4", "header", ["fit", "wronghdr.csv"], "--columns t=NAME,u=NAME"),
     cli("T5", "missing-value", ["fit", "missingcol.csv"], "expected 2 values (t,u), got 1"),
     cli("T6", "text", ["fit", "text.csv"], "is not a number"),
-    cli("T7", "nan", ["fit", "nan.csv"], "value 'nan' is not finite"),
+    cli("T7", "nan", ["fit", "nan.csv"], "pass --drop-nan to drop them"),
+    cli("T17", "units", ["fit", "good.csv", "--units", "u=furlong"], "--units u=furlong"),
+    cli("F14", "mm-as-m", ["fit", "big.csv"], "is the trace in mm?"),
     cli("T8", "backwards", ["fit", "back_trace.csv"], "time goes backwards"),
     cli("T8", "repeat", ["fit", "repeat.csv"], "repeats the previous sample"),
     cli("T9", "short", ["fit", "short.csv"], "at least 10 are needed"),
@@ -627,7 +681,7 @@ CLI = [
     cli("C3", "simulate", ["simulate", "--u0", "0.1", "--t1", "1e300"], "shorten --t1"),
     cli("C3", "simulate-record", ["simulate", "--record", "good.txt", "--t1", "1e300"],
         "shorten --t1"),
-    cli("C3", "sweep", SWEEP + ["--t1", "1e300"], "shorten --t1"),
+    cli("C3", "sweep", SWEEP + ["--tail", "1e300"], "shorten --tail"),
     cli("C4", "units", SWEEP + ["--units", "cm"], "argument --units: invalid choice"),
     cli("C5", "neither", ["simulate"], "give --u0 M (free vibration) or --record FILE"),
     cli("C5", "both", ["simulate", "--u0", "0.1", "--record", "good.txt"], "not both"),
@@ -644,6 +698,19 @@ CLI = [
     cli("C10", "option", ["pushover", "--bogus"], "unrecognized arguments: --bogus"),
     cli("C10", "required", ["fit"], "the following arguments are required"),
     cli("C11", "umax", ["pushover", "--umax", "100"], "--umax must be below the body's reach"),
+    cli("C12", "u0", ["simulate", "--u0", "100"], "--u0 100 m is beyond u_overturn = 0.375 m"),
+    cli("C9", "simulate", SIM + ["--out", "nodir/x.csv"], "--out: directory not found"),
+    cli("C9", "pushover", ["pushover", "--plot", "nodir/x.png"], "--plot: directory not found"),
+    cli("C13", "units-twice", ["sweep", "--units", "g", "--units", "g", "--record", "good.txt"],
+        "--units: given twice before the first --record"),
+    cli("C14", "units-after", ["sweep", "--record", "good.txt:g", "--units", "m/s2"],
+        "already has units"),
+    cli("C15", "empty-dir", ["sweep", "--record", "recdir"], "no record files in this folder"),
+    cli("C16", "twice", ["sweep", "--record", "good.txt", "--record", "good.txt"], "given twice"),
+    cli("C17", "pairs", ["fit", "good.csv", "--units", "u"],
+        "--units takes CHANNEL=VALUE pairs"),
+    cli("C18", "fit-r", ["fit", "good.csv", "--r", "1.0"],
+        "--r must lie strictly inside (0, 1) for a fit"),
 ]
 
 

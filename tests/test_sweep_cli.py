@@ -244,6 +244,8 @@ def test_scales_parsing():
     assert _scales("2:1:2") == [2.0, 1.0]
     assert _scales("0.7:0.7:1") == [0.7]
     assert _scales("1.25") == [1.25]
+    # ranges print as typed: 0.8, not linspace's 0.7999999999999999
+    assert _scales("0.1:2.0:20")[7] == 0.8 and str(_scales("0.1:2.0:20")[7]) == "0.8"
 
 
 def test_sweep_help():

@@ -10,6 +10,10 @@ samples), trailing zeros, a record that ends mid-rock, a body at rest at u = 0 u
 forcing, a record with a constant offset, and releases at rest, at exactly u_crit and at
 u_overturn. `tests/test_matrix.py` runs the same corpus (imported from this file) and
 asserts the agreement; this script writes the table of `docs/matrix.md`.
+
+`quiet_starts()` adds long records that start quietly: the real IELC180 (with 0 to 1000
+zeros in front) and ChiChi.dat (2 s of zeros in the file) from a folder (`--real`), or,
+without one, generated stand-ins of the same length, step and PGA (what the test uses).
 """
 
 from __future__ import annotations
@@ -48,6 +52,35 @@ def records():
     cases["zero forcing, at rest"] = np.zeros(200)
     cases["constant offset"] = base + 0.3
     return cases
+
+
+#: generated stand-ins for the real quiet-start records: (duration [s], PGA [m/s²], seed)
+#: like IELC180 (40 s, 3.068 m/s²; the tests' record, tests/conftest.py) and ChiChi.dat
+#: (50.8 s of motion after 2 s of zeros, 3.540 m/s²)
+QUIET_START_SYNTHETIC = {"IELC180": (40.0, 3.068, 20), "ChiChi": (50.8, 3.540, 21)}
+QUIET_START_ZEROS = (0, 1, 10, 100, 1000)
+
+
+def quiet_starts(folder=None):
+    """[(name, dt [s], accel [m/s²], zeros in front)]: a 40 s record with 0 to 1000 zeros
+    in front, and a record whose file starts with 2 s of zeros. The real IELC180.AT2 and
+    ChiChi.dat from `folder`; without it, generated records like them
+    (`QUIET_START_SYNTHETIC`, the second one behind 2 s of zeros)."""
+    if folder is not None:
+        el = rockjax.read_record(pathlib.Path(folder) / "IELC180.AT2", units="g")
+        cc = rockjax.read_record(pathlib.Path(folder) / "ChiChi.dat", units="g")
+        first, second = ("IELC180", el.dt, el.accel), ("ChiChi.dat", cc.dt, cc.accel)
+        quiet = "starts with 2 s of zeros"
+    else:
+        recs = {k: rockjax.datasets.synthetic_ground_motion(duration=d, dt=DT, pga=p, seed=s)
+                for k, (d, p, s) in QUIET_START_SYNTHETIC.items()}
+        first = ("synthetic like IELC180 (seed 20)", DT, recs["IELC180"].accel)
+        second = ("synthetic like ChiChi.dat (seed 21)", DT,
+                  np.concatenate([np.zeros(200), recs["ChiChi"].accel]))
+        quiet = "2 s of zeros in front"
+    runs = [(f"{first[0]}, {n} zeros in front", first[1], np.asarray(first[2]), n)
+            for n in QUIET_START_ZEROS]
+    return runs + [(f"{second[0]} ({quiet})", second[1], np.asarray(second[2]), 0)]
 
 
 def releases(structure):
@@ -143,12 +176,8 @@ def real_records(folder):
     lines = ["## Real records with quiet starts (model simplified, `rockjax.simulate` "
              "defaults)", "", "| record | " + " | ".join(METHODS) + " | largest relative "
              "peak difference |", "|---|" + "---|" * (len(METHODS) + 1)]
-    el = rockjax.read_record(pathlib.Path(folder) / "IELC180.AT2", units="g")
-    cc = rockjax.read_record(pathlib.Path(folder) / "ChiChi.dat", units="g")
-    runs = [(f"IELC180, {n} zeros in front", el, n) for n in (0, 1, 10, 100, 1000)]
-    runs.append(("ChiChi.dat (starts with 2 s of zeros)", cc, 0))
-    for name, rec, n in runs:
-        gm = rockjax.GroundMotion(dt=rec.dt, accel=np.concatenate([np.zeros(n), rec.accel]))
+    for name, dt, accel, n in quiet_starts(folder):
+        gm = rockjax.GroundMotion(dt=dt, accel=np.concatenate([np.zeros(n), accel]))
         t1 = float(gm.duration)
         cells = [rockjax.simulate(s, gm, t1, method=m) for m in METHODS]
         peaks = np.array([float(r.peak_u) for r in cells])

@@ -214,10 +214,41 @@ def synthetic_ground_motion(
 ) -> Record:
     """A **synthetic** ground acceleration [m/s²]: not a real record.
 
-    Gaussian white noise (fixed `seed`) filtered by a Kanai-Tajimi ground filter
-    (f_g = 2.5 Hz, ζ_g = 0.6), shaped by a build-up / strong-motion / decay envelope and
-    scaled to the peak ground acceleration `pga` [m/s²]. Used by the demo and the notebooks
-    when the El Centro record is neither cached nor downloadable; always labelled synthetic.
+    Deterministic: the same arguments give the same samples, bit for bit, on any machine
+    with the same NumPy random stream (``tests/test_datasets.py`` pins a few values, so a
+    change of the stream is reported, never silent). The tests use it in place of the
+    El Centro record (``tests/conftest.py``: 40 s, dt = 0.01 s, El Centro's PGA
+    3.068 m/s², ``seed=20``); the demo and the notebooks fall back to it (with the
+    defaults) when El Centro is neither cached nor downloadable, always labelled synthetic.
+
+    Algorithm, with n = round(duration / dt) + 1 samples at t_i = i dt:
+
+    1. white noise w_i = z_i / sqrt(dt), z = ``numpy.random.default_rng(seed)
+       .standard_normal(n)`` (PCG64; a discrete unit-intensity white noise);
+    2. a Kanai-Tajimi ground filter (f_g = 2.5 Hz, ζ_g = 0.6, ω_g = 2π f_g):
+       x'' + 2 ζ_g ω_g x' + ω_g² x = -w, integrated from rest by semi-implicit Euler
+       (v += dt x'', then x += dt v); the output is the filter's absolute acceleration
+       a_i = -(2 ζ_g ω_g v_i + ω_g² x_i);
+    3. an envelope e(t): (t / t_1)² up to t_1 = 0.1 duration, 1 up to t_2 = 0.4 duration,
+       then exp(-3 (t - t_2) / duration);
+    4. a_i e(t_i), scaled so that max |a| = `pga` exactly (a_0 = 0: the motion starts
+       from rest).
+
+    Parameters
+    ----------
+    duration : float, default 40.0
+        Length [s]; the last sample is at t = duration (rounded to the grid).
+    dt : float, default 0.01
+        Time step [s].
+    pga : float, default 3.0
+        Peak ground acceleration [m/s²] (El Centro 1940 NS: 3.068).
+    seed : int, default 0
+        Seed of the Gaussian noise; each seed is a different record.
+
+    Returns
+    -------
+    Record
+        ``source = "synthetic (seed N)"`` and a description that says SYNTHETIC.
     """
     import numpy as np
 

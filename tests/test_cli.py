@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from conftest import run_cli
 
+from rockjax import G_STANDARD
 from rockjax.cli import main
 
 
@@ -43,10 +45,13 @@ def test_pushover_table_plot_and_csv(tmp_path, capsys):
     assert "u_crit" in text and "restitution" in text
     assert png.stat().st_size > 10_000
     lines = csv.read_text().splitlines()
-    assert lines[0] == "u_m,simplified_N,exact_N,numerical_N,theta_rad,uplift_m" and len(lines) == 202
+    assert lines[0] == "u_m,simplified_N,exact_N,numerical_N,theta_rad,uplift_m"
+    assert len(lines) == 202
 
 
 def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
+    """The demo on the real El Centro record (skips without the shared folder): the
+    paper's Fig. 10 case, 243 impacts. test_demo_falls_back_to_synthetic runs it without."""
     monkeypatch.setenv("ROCKJAX_EL_CENTRO", str(ground_motions_dir / "IELC180.AT2"))
     monkeypatch.setenv("ROCKJAX_CACHE", str(tmp_path / "cache"))
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
@@ -89,16 +94,31 @@ def test_simulate_free_vibration_json(capsys):
     assert out["n_impacts"] == 17
 
 
-def test_simulate_record_csv_plot(tmp_path, capsys, ground_motions_dir):
-    rec = ground_motions_dir / "IELC180.AT2"
+def write_at2(path, record):
+    """`record` (m/s²) as a PEER AT2 file in g, five values a line like IELC180.AT2."""
+    g = np.asarray(record.accel) / G_STANDARD
+    rows = [" ".join(f"{x:15.7E}" for x in g[i:i + 5]) for i in range(0, len(g), 5)]
+    header = ["SYNTHETIC GROUND MOTION (rockjax.datasets.synthetic_ground_motion)",
+              record.source, "ACCELERATION TIME HISTORY IN UNITS OF G",
+              f"NPTS= {len(g)}, DT= {record.dt:.5f} SEC"]
+    path.write_text("\n".join(header + rows) + "\n")
+    return path
+
+
+def test_simulate_record_csv_plot(tmp_path, capsys, synthetic_record):
+    """A record file (the generated test record written as an AT2 file in g)."""
+    rec = write_at2(tmp_path / "synthetic.AT2", synthetic_record)
     csv, png = tmp_path / "r.csv", tmp_path / "r.png"
     args = ["simulate", "--record", str(rec), "--units", "g", "--scale", "0.5", "--t1", "10",
             "--model", "exact", "--out", str(csv), "--plot", str(png)]
     assert main(args) == 0
     text = capsys.readouterr().out
+    assert "synthetic.AT2: units g" in text  # the record read back: El Centro's PGA
+    assert "4001 points, 40 s, PGA 0.3128 g x scale 0.5" in text
     assert "status        completed" in text
     lines = csv.read_text().splitlines()
-    assert lines[0] == "t_s,u_m,v_m_s,theta_rad,uplift_m" and len(lines) == 1002  # 0.01 s grid, 10 s
+    assert lines[0] == "t_s,u_m,v_m_s,theta_rad,uplift_m"
+    assert len(lines) == 1002  # 0.01 s grid, 10 s
     assert png.stat().st_size > 10_000
 
 

@@ -26,10 +26,28 @@ compression-only dashpots $c_f$) and the ground acceleration, $-\ddot u_g \sum_j
 **Contact changes** are events. A change of the no-slip pivot changes the velocity
 constraint on $x_o$; the friction impulse that enforces the new one is applied as a
 perfectly inelastic projection of the velocities (it removes a fraction of order
-$(\delta_0 / H)^2$ of the kinetic energy). With `contact="impact"` (default), a lifted corner
-landing on its spring is Housner's plastic impact: the velocities are then also scaled by
-$\sqrt r$ (Eq. 2, $r$ from Eq. 3). With `contact="continuous"`, the springs and dashpots
-alone carry the impact.
+$(\delta_0 / H)^2$ of the kinetic energy). With `contact="continuous"`, the springs and
+dashpots alone carry the landings.
+
+**The landing law** (`contact="impact"`, default). The mode remembers the rocking *side*,
+the corner the body last rocked about. A corner that lands on the other side is Housner's
+rocking impact (Eqs 2–3): the rotation rate drops to $\sqrt r$ of its value and the
+landing corner stops, so the body turns about it. After that impact the corner, stopped
+at the unloaded spring top, takes the whole weight, sinks and may bounce off its spring
+for a few tens of microseconds (the vertical period $2\pi\sqrt{M/2k_f}$). Its re-landing
+is about the same side, so it is a plastic impact of that corner alone (`corner_stop`):
+the corner's vertical velocity goes, angular momentum about it is conserved, and nothing
+else. So the body has one rocking impact per crossing and tends to Housner's rigid block
+as $k_f \to \infty$ (tested in `tests/test_twospring.py`).
+
+**Ringing below lift-off.** Impacts are the only dissipation of the undamped model, and
+they happen only at landings. Once the rocking amplitude falls to about $u_{crit}$ the
+corners barely lift off, the impacts take almost nothing, and the body vibrates
+elastically on its springs at the pre-uplift frequency (`linearised_frequency`), at an
+amplitude of about $u_{crit}$ (5.5 mm for Table 1), indefinitely. That is the physics of
+undamped springs, not a numerical artefact; the paper's SDOF does not show it because its
+impact rule `"paper"` charges an impact at every crossing of $u = 0$. Dashpots
+(`damping`, $c_f$) damp it.
 """
 
 from __future__ import annotations
@@ -47,13 +65,16 @@ CONTACTS = ("impact", "continuous")
 
 class TwoSpringMode(eqx.Module):
     """The discrete mode of the 2-DOF body: the no-slip `pivot` (-1 left corner, 0 the
-    centre, +1 right corner), its horizontal position `X` [m], and the contact flags
-    `cl`, `cr` of the left and right springs (1.0 in contact, 0.0 lifted)."""
+    centre, +1 right corner), its horizontal position `X` [m], the contact flags `cl`,
+    `cr` of the left and right springs (1.0 in contact, 0.0 lifted), and the rocking
+    `side`: the corner (-1 left, +1 right) the body last rocked about, 0 before it has
+    lifted off (a landing is a rocking impact only when it changes the side)."""
 
     pivot: jnp.ndarray
     X: jnp.ndarray
     cl: jnp.ndarray
     cr: jnp.ndarray
+    side: jnp.ndarray
 
 
 class TwoSpring2DOF(AbstractRockingModel):
@@ -114,7 +135,10 @@ class TwoSpring2DOF(AbstractRockingModel):
 
     def _contact(self, s, y, mode, r, *, left):
         """A corner reaches its spring: new contact flags, the pivot and its friction
-        impulse, and (contact="impact") Housner's plastic impact at a landing."""
+        impulse, and (contact="impact") the landing law: Housner's rocking impact when
+        the rocking side changes, a plastic impact of the corner alone when it re-lands
+        after a hop about the same side."""
+        c = -1.0 if left else 1.0  # the corner that reaches its spring
         q = y[:2].at[0 if left else 1].set(0.0)  # on the contact surface exactly
         qd = y[2:]
         cl = jnp.where(left, 1.0 - mode.cl, mode.cl)
@@ -128,15 +152,27 @@ class TwoSpring2DOF(AbstractRockingModel):
         X_new = jnp.where(new_pivot == 0, x_o, x_o + new_pivot * s.B * jnp.cos(th))
         X_new = jnp.where(changed, X_new, mode.X)
         landing = (cl if left else cr) > 0
-        real = landing & (self.contact == "impact")
-        # Housner's plastic impact (Eqs 2-3): the rotation rate drops to sqrt(r) of its value
-        # and the landing corner stops (no rebound): y_o' = -/+ B cos(theta) theta'.
+        impact_law = self.contact == "impact"
+        rocking = landing & (c != mode.side)
+        # Housner's rocking impact (Eqs 2-3): the rotation rate drops to sqrt(r) of its
+        # value and the landing corner stops (no rebound): y_o' = -/+ B cos(theta) theta'.
         w = jnp.sqrt(r) * (qd[0] - qd[1])  # = 2 B cos(theta) theta'
         qd_imp = jnp.stack([0.0 * w, -w]) if left else jnp.stack([w, 0.0 * w])
-        qd_new = jnp.where(real, qd_imp, qd_new)
+        # A re-landing after a hop about the same side: the corner alone stops (plastic),
+        # angular momentum about it is conserved, only the hop's vertical energy goes.
+        qd_hop = corner_stop(s, q, qd, pivot, 0 if left else 1)
+        qd_new = jnp.where(impact_law & landing, jnp.where(rocking, qd_imp, qd_hop), qd_new)
+        # The side becomes the corner that landed at a rocking impact. At a lift-off that
+        # leaves the other corner alone in contact, it becomes that corner if the body
+        # turns about it (the lifting corner rises faster than the one in contact); if
+        # the corner in contact rises faster, the lifting corner only hops.
+        other = jnp.where(left, cr, cl) > 0
+        turns = c * (qd[1] - qd[0]) > 0  # corner c rises relative to the other one
+        side = jnp.where(landing, jnp.where(rocking, c, mode.side),
+                         jnp.where(other & turns, -c, mode.side))
         f = jnp.zeros((), bool)
-        new = TwoSpringMode(pivot=new_pivot, X=X_new, cl=cl, cr=cr)
-        return jnp.concatenate([q, qd_new]), new, Flags(real, f, f)
+        new = TwoSpringMode(pivot=new_pivot, X=X_new, cl=cl, cr=cr, side=side)
+        return jnp.concatenate([q, qd_new]), new, Flags(rocking & impact_law, f, f)
 
     def _overturn(self, s, y, mode, r):
         f = jnp.zeros((), bool)
@@ -274,6 +310,19 @@ def switch_pivot(s, q, qd, old, new):
     return jnp.stack([Vp[1] + s.B * c * Vp[2], Vp[1] - s.B * c * Vp[2]])
 
 
+def corner_stop(s, q, qd, pivot, i):
+    """Velocities after a plastic impact of corner `i` (0 left, 1 right) alone.
+
+    A vertical impulse J at the corner stops it: M(q) (qd+ - qd-) = J e_i with qd+_i = 0,
+    M the generalised mass matrix of the corner heights q. The impulse acts at the corner,
+    so angular momentum about it is conserved; the kinetic energy lost is that of the
+    corner's vertical velocity, (qd-_i)^2 / (2 (M^-1)_ii).
+    """
+    M = jax.hessian(kinetic, argnums=2)(s, q, jnp.zeros_like(q), pivot)
+    col = jnp.linalg.solve(M, jnp.eye(2, dtype=qd.dtype)[i])
+    return qd - col * (qd[i] / col[i])
+
+
 # ---------------------------------------------------------------------------- statics
 
 
@@ -351,7 +400,7 @@ def _initial_state(s, u0, v0):
     qd = jnp.where(pivot > 0, jnp.stack([2 * bc, 0.0 * bc]),
                    jnp.where(pivot < 0, jnp.stack([0.0 * bc, -2 * bc]), jnp.stack([bc, -bc])))
     mode = TwoSpringMode(pivot=pivot, X=X, cl=(q[0] <= 0).astype(q.dtype),
-                         cr=(q[1] <= 0).astype(q.dtype))
+                         cr=(q[1] <= 0).astype(q.dtype), side=pivot)
     return jnp.concatenate([q, qd]), mode
 
 

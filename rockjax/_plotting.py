@@ -130,12 +130,13 @@ def _marks(ax_u, s, res):
 
 
 def plot_response(structure, response, *, ground_motion=None, title=None, label=None,
-                  overlay=()):
+                  overlay=(), note=None):
     """Fig 9/10-style time histories: displacement (impacts marked, ±u_crit dotted) and
     uplift, with the ground acceleration on top when given.
 
     After overturning the curves stop at `t_overturn` (marked, with ±u_overturn dashed).
-    `overlay` is a sequence of `(label, Response)` drawn over the main one. Returns the Figure.
+    `overlay` is a sequence of `(label, Response)` drawn over the main one; `note` a text
+    written in the displacement panel. Returns the Figure.
     """
     s = structure
     res = response
@@ -156,6 +157,9 @@ def plot_response(structure, response, *, ground_motion=None, title=None, label=
         ax.grid(alpha=0.3)
     if label or overlay or np.isfinite(float(res.t_overturn)):
         ax_u.legend(fontsize=8, loc="upper right")
+    if note:
+        ax_u.text(0.99, 0.03, note, transform=ax_u.transAxes, ha="right", va="bottom",
+                  fontsize=7, color="0.25", bbox=dict(fc="white", ec="0.8", alpha=0.85))
     status = _status_text(res.status)
     summary = (f"peak |u| = {1e3 * float(res.peak_u):.1f} mm, peak uplift = "
                f"{1e3 * float(res.peak_uplift):.1f} mm, {int(res.n_impacts)} impacts, {status}")

@@ -77,6 +77,9 @@ def _demo_free_vibration(s, out):
         overlay=[("exact (SDOF)", free_exact), ("2-DOF rigid body", free_2dof)],
         title=f"Free vibration from u0 = 0.10 m, r = {float(s.restitution):.3f} (Eq 3), impact "
         "rule paper, cf. Fig 9",
+        note="2-DOF body: impacts happen only at landings; once |u| is about u_crit (dotted)\n"
+        "it vibrates on its undamped springs, without uplift or loss (TwoSpring2DOF(damping=c_f)"
+        " damps it)",
     )
     return _save(fig, out / "free_vibration.png"), free, free_exact
 

@@ -276,7 +276,37 @@ def test_hop_landing_is_a_plastic_impact_of_the_corner_alone(column):
         for i, qd in ((0, jnp.asarray([-0.05, 0.3])), (1, jnp.asarray([0.2, -0.04]))):
             qd2 = T2.corner_stop(s, q, qd, pivot, i)
             assert abs(float(qd2[i])) < 1e-15
-            M = jax.hessian(T2.kinetic, argnums=2)(s, q, jnp.zeros(2), pivot)
+            M = T2.mass_matrix(s, q, pivot)
             impulse = M @ (qd2 - qd)
             assert abs(float(impulse[1 - i])) < 1e-12 * abs(float(impulse[i]))
             assert float(T2.kinetic(s, q, qd2, pivot)) < float(T2.kinetic(s, q, qd, pivot))
+
+
+def _lagrange_autodiff(s, model, q, qd, pivot, cl, cr, ag):
+    """Lagrange's equations formed by automatic differentiation of the kinetic energy:
+    M q'' = Q + dT/dq - (dp/dq) q', p = dT/dq'; the reference for the written-out ones."""
+    M = jax.hessian(T2.kinetic, argnums=2)(s, q, jnp.zeros_like(q), pivot)
+    dTdq = jax.grad(T2.kinetic, argnums=1)(s, q, qd, pivot)
+    _, dp = jax.jvp(lambda qq: jax.grad(T2.kinetic, argnums=2)(s, qq, qd, pivot), (q,), (qd,))
+    Q = -jax.grad(T2.gravity_potential, argnums=1)(s, q)
+    f = -s.k_f * q - model.damping * qd
+    f = jnp.where(model.damping > 0, jnp.maximum(f, 0.0), f)
+    Q = Q + jnp.where(jnp.stack([cl, cr]), f, 0.0)
+    Q = Q - ag * jax.grad(T2._horizontal_moment, argnums=1)(s, q, pivot, 0.0)
+    return jnp.linalg.solve(M, Q + dTdq - dp), M
+
+
+def test_written_out_equations_match_autodiff_lagrange(column):
+    """`accelerations` and `mass_matrix` (closed forms, the fast path's) against Lagrange's
+    equations from autodiff of the kinetic energy, at random states, pivots, contacts,
+    dashpots and ground accelerations."""
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        q, qd = jnp.asarray(rng.normal(0, 0.05, 2)), jnp.asarray(rng.normal(0, 0.5, 2))
+        pivot, ag = float(rng.choice([-1, 0, 1])), float(rng.normal(0, 3))
+        model = T2.TwoSpring2DOF(damping=float(rng.choice([0.0, 800.0])))
+        cl, cr = bool(rng.integers(2)), bool(rng.integers(2))
+        ref, M = _lagrange_autodiff(column, model, q, qd, pivot, cl, cr, ag)
+        got = T2.accelerations(column, model, q, qd, pivot, cl, cr, ag)
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(ref))))
+        np.testing.assert_allclose(T2.mass_matrix(column, q, pivot), M, rtol=1e-12)

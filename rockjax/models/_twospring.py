@@ -17,8 +17,9 @@ about the centreline); while one spring is in contact that corner keeps its hori
 position $X$, so $x_o = X \mp B\cos\theta$.
 
 **Equations of motion**: Lagrange's equations $M(q)\ddot q = Q + \partial T/\partial q -
-(\partial p/\partial q)\dot q$, with $p = \partial T/\partial \dot q$, formed by automatic
-differentiation of the kinetic energy $T$; $Q$ holds gravity, the springs
+(\partial p/\partial q)\dot q$, with $p = \partial T/\partial \dot q$, written out in
+`accelerations` (and checked against their automatic differentiation from the kinetic
+energy $T$ in the tests); $Q$ holds gravity, the springs
 $f_i = \max(0, k_f\delta_i + c_f\dot\delta_i)$ while compressed ($\delta_i > 0$; optional
 compression-only dashpots $c_f$) and the ground acceleration, $-\ddot u_g \sum_j m_j
 \partial x_j/\partial q$.
@@ -264,24 +265,67 @@ def _horizontal_moment(s, q, pivot, X):
     return s.m_e * (x_o + s.H_e * jnp.sin(theta)) + s.m_b * (x_o + s.H_b * jnp.sin(theta))
 
 
+def _inertia(s):
+    """(m, m h, I_h): total mass [kg], first moment sum m_j H_j [kg m] and rotary inertia
+    about the base centre I_eg + I_bg + sum m_j H_j^2 [kg m^2]."""
+    m = s.m_e + s.m_b
+    return m, s.m_e * s.H_e + s.m_b * s.H_b, s.I_eg + s.I_bg + s.m_e * s.H_e**2 + s.m_b * s.H_b**2
+
+
+def _mass_y_theta(s, theta, pivot):
+    """Mass matrix in (y_o, theta) and d I_theta / d theta, with x_o' = pivot B sin(theta)
+    theta' substituted: T = m y'^2/2 - mh sin(theta) y' theta' + I_theta theta'^2 / 2."""
+    m, mh, Ih = _inertia(s)
+    sn, c = jnp.sin(theta), jnp.cos(theta)
+    pB = pivot * s.B
+    I_th = Ih + m * pB**2 * sn**2 + 2.0 * pB * mh * sn * c
+    dI = 2.0 * m * pB**2 * sn * c + 2.0 * pB * mh * (c**2 - sn**2)
+    return m, mh, I_th, dI
+
+
+def mass_matrix(s, q, pivot):
+    """The generalised mass matrix M(q) [kg] of the corner heights q (T = qd' M qd / 2)."""
+    _, theta = geometry(s, q)
+    m, mh, I_th, _ = _mass_y_theta(s, theta, pivot)
+    sn = jnp.sin(theta)
+    M_yt = jnp.stack([jnp.stack([m, -mh * sn]), jnp.stack([-mh * sn, I_th])])
+    a = 1.0 / (2.0 * s.B * jnp.cos(theta))
+    J = jnp.stack([jnp.stack([0.5 + 0.0 * a, 0.5 + 0.0 * a]), jnp.stack([a, -a])])
+    return J.T @ M_yt @ J
+
+
 def accelerations(s, model, q, qd, pivot, contact_l, contact_r, ag):
-    """q'' from Lagrange's equations, for the current contact state and ground accel ag."""
-    M = jax.hessian(kinetic, argnums=2)(s, q, jnp.zeros_like(q), pivot)
-    dTdq = jax.grad(kinetic, argnums=1)(s, q, qd, pivot)
+    r"""q'' from Lagrange's equations, for the current contact state and ground accel ag.
 
-    def momentum(qq):
-        return jax.grad(kinetic, argnums=2)(s, qq, qd, pivot)
+    In $(y_o, \theta)$, with $x_o' = pB\sin\theta\,\theta'$ ($p$ the pivot), $s, c$ the sine
+    and cosine of $\theta$, $m h = m_eH_e + m_bH_b$ and
+    $I_\theta = I_h + m p^2B^2 s^2 + 2pB\,mh\,sc$:
 
-    _, dp = jax.jvp(momentum, (q,), (qd,))
-    Q = -jax.grad(gravity_potential, argnums=1)(s, q)
-    # Springs (and dashpots) push up at the corners: generalised forces on q directly. In
-    # contact the force is continued smoothly past its end (the contact event ends the
-    # segment there); a dashpot cannot pull, so with damping the force is clipped.
+    $$m\ddot y_o - mh\,s\,\ddot\theta = Q_y + mh\,c\,\dot\theta^2, \qquad
+    -mh\,s\,\ddot y_o + I_\theta\ddot\theta = Q_\theta - \tfrac12 I_\theta'\dot\theta^2,$$
+
+    $Q_y = f_l + f_r - mg$, $Q_\theta = (f_l - f_r)Bc + mh\,g\,s - \ddot u_g(m pBs + mh\,c)$;
+    then $\ddot q_{l,r} = \ddot y_o \pm B(c\ddot\theta - s\dot\theta^2)$. Written out (no
+    autodiff: the fast path evaluates it 16 times a record step); `tests/test_twospring.py`
+    checks it against Lagrange's equations formed by automatic differentiation of `kinetic`.
+    """
+    _, theta, _, thd = _rates(s, q, qd)
+    m, mh, I_th, dI = _mass_y_theta(s, theta, pivot)
+    sn, c = jnp.sin(theta), jnp.cos(theta)
+    # Springs (and dashpots) push up at the corners. In contact the force is continued
+    # smoothly past its end (the contact event ends the segment there); a dashpot cannot
+    # pull, so with damping the force is clipped.
     f = -s.k_f * q - model.damping * qd
     f = jnp.where(model.damping > 0, jnp.maximum(f, 0.0), f)
     f = jnp.where(jnp.stack([contact_l, contact_r]), f, 0.0)
-    Q = Q + f - ag * jax.grad(_horizontal_moment, argnums=1)(s, q, pivot, 0.0)
-    return jnp.linalg.solve(M, Q + dTdq - dp)
+    Qy = f[0] + f[1] - m * s.g + mh * c * thd**2
+    Qt = ((f[0] - f[1]) * s.B * c + mh * s.g * sn - ag * (m * pivot * s.B * sn + mh * c)
+          - 0.5 * dI * thd**2)
+    det = m * I_th - (mh * sn) ** 2
+    ydd = (I_th * Qy + mh * sn * Qt) / det
+    thdd = (mh * sn * Qy + m * Qt) / det
+    a = s.B * (c * thdd - sn * thd**2)
+    return jnp.stack([ydd + a, ydd - a])
 
 
 def energy(s, q, qd, pivot):
@@ -318,8 +362,7 @@ def corner_stop(s, q, qd, pivot, i):
     so angular momentum about it is conserved; the kinetic energy lost is that of the
     corner's vertical velocity, (qd-_i)^2 / (2 (M^-1)_ii).
     """
-    M = jax.hessian(kinetic, argnums=2)(s, q, jnp.zeros_like(q), pivot)
-    col = jnp.linalg.solve(M, jnp.eye(2, dtype=qd.dtype)[i])
+    col = jnp.linalg.solve(mass_matrix(s, q, pivot), jnp.eye(2, dtype=qd.dtype)[i])
     return qd - col * (qd[i] / col[i])
 
 

@@ -174,7 +174,8 @@ def restoring_force(structure, u, model="simplified"):
     - `u`: top displacement [m], any shape (vectorised).
     - `model`: `"simplified"` (Eqs 13, 20; default), `"exact"` (Eqs 13, 18), `"smooth"`
       (C2 blend of simplified, `rockjax.Smooth(width=...)` to set the width) or
-      `"housner"` (rigid limit), or an `AbstractRestoringForce` instance.
+      `"housner"` (rigid limit), `"two_spring_2dof"` or `"rigid_body"` (the body's
+      pushover, `rockjax.pushover`), or an `AbstractRestoringForce` instance.
 
     **Returns:** the force [N], same shape as `u`, odd in `u`.
 
@@ -185,8 +186,9 @@ def restoring_force(structure, u, model="simplified"):
     rockjax.restoring_force(s, jnp.linspace(0, 0.3, 5), model="exact")
     ```
     """
-    if isinstance(model, str) and model == "two_spring_2dof":
-        return pushover(structure, u).P  # the 2-DOF body's static force: its pushover
+    if isinstance(model, str) and model in ("two_spring_2dof", "rigid_body"):
+        # the body models' static force is the body's pushover
+        return pushover(structure, u).P
     if isinstance(model, str):
         if model not in LAWS:
             raise ValueError(
@@ -196,8 +198,8 @@ def restoring_force(structure, u, model="simplified"):
         model = LAWS[model]()
     if not isinstance(model, AbstractRestoringForce):
         raise ValueError(
-            f"model must be one of {', '.join(repr(m) for m in LAWS)}, 'two_spring_2dof' or "
-            f"an AbstractRestoringForce instance, got {model!r}"
+            f"model must be one of {', '.join(repr(m) for m in LAWS)}, 'two_spring_2dof', "
+            f"'rigid_body' or an AbstractRestoringForce instance, got {model!r}"
         )
     return model(structure, u)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ._base import AbstractRockingModel
 from ._laws import AbstractRestoringForce, Exact, Housner, Simplified, Smooth
+from ._rigidbody import RigidBody
 from ._sdof import IMPACT_RULES, SDOF
 from ._twospring import TwoSpring2DOF
 
@@ -14,6 +15,7 @@ MODELS = {
     "exact": Exact,
     "smooth": Smooth,
     "two_spring_2dof": TwoSpring2DOF,
+    "rigid_body": RigidBody,
 }
 
 
@@ -21,7 +23,9 @@ def get_model(model, impact: str = "paper") -> AbstractRockingModel:
     """A rocking model from a name of the ladder, a restoring-force law or a model.
 
     - a name: `"housner"`, `"simplified"`, `"exact"`, `"smooth"` (each the SDOF Eq. 1 with
-      that law and the impact rule `impact`) or `"two_spring_2dof"` (the 2-DOF body);
+      that law and the impact rule `impact`), `"two_spring_2dof"` (the 2-DOF body) or
+      `"rigid_body"` (the body's own one-DOF rocking equation, `RigidBody`); `impact`
+      applies to the SDOF models only;
     - an `AbstractRestoringForce` (e.g. `rockjax.Smooth(width=0.1)`): the SDOF with it;
     - an `AbstractRockingModel` (e.g. `rockjax.TwoSpring2DOF(damping=...)`): itself.
     """

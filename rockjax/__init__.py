@@ -23,6 +23,7 @@ from ._excitation import (  # noqa: E402
     FreeVibration as FreeVibration,
     GroundMotion as GroundMotion,
 )
+from ._fidelity import FidelityWarning as FidelityWarning  # noqa: E402
 from ._kinematics import (  # noqa: E402
     theta_from_u as theta_from_u,
     u_from_theta as u_from_theta,
@@ -57,6 +58,7 @@ from .models import (  # noqa: E402
     IMPACT_RULES as IMPACT_RULES,
     MODELS as MODELS,
     restoring_force as restoring_force,
+    RigidBody as RigidBody,
     SDOF as SDOF,
     Simplified as Simplified,
     Smooth as Smooth,

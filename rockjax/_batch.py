@@ -30,6 +30,7 @@ from ._checks import (
     stepper_grid_step,
 )
 from ._excitation import FreeVibration, GroundMotion, PaddedGroundMotion
+from ._fidelity import warn_sdof_lift_off
 from ._records import common_time_step, on_grid, Record
 from ._response import Response
 from ._simulate import resample_outputs
@@ -400,6 +401,7 @@ def simulate_batch(
     chunk_size=None,
     devices=None,
     progress=None,
+    fidelity_warning=True,
 ):
     r"""Many simulations of Eq. 1 at once: any mix of structures, r, u0, v0, scales, records.
 
@@ -457,6 +459,8 @@ def simulate_batch(
     - `devices`: how many local devices to split each chunk over (default: all of
       `jax.local_devices()`; on a CPU set
       `XLA_FLAGS=--xla_force_host_platform_device_count=<cores>` before importing jax).
+    - `fidelity_warning`: as `rockjax.simulate` (one warning for the batch, counting the
+      runs that lift off by more than 3 u_crit under the paper's SDOF models).
     - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and
       stderr is a terminal, so logs get no carriage returns).
 
@@ -510,7 +514,9 @@ def simulate_batch(
     tables = (jnp.asarray(table, dtype), None if free else jnp.asarray(lengths, jnp.int32))
     res = _run_chunks(plan, N, names, values, shared, tables, ts_d, dtype, progress)
     t_end = np.broadcast_to(np.asarray(members["t_end"], float), (N,))
-    return _assemble(plan, res, structure, N, ts, summary_only, t_end)
+    out = _assemble(plan, res, structure, N, ts, summary_only, t_end)
+    warn_sdof_lift_off(model, structure, not free, out.peak_u, fidelity_warning)
+    return out
 
 
 def _check_t1(t1):

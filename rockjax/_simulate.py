@@ -27,6 +27,7 @@ from ._checks import (
     strong,
 )
 from ._excitation import AbstractExcitation, GroundMotion
+from ._fidelity import warn_sdof_lift_off
 from ._records import Record
 from ._response import Response
 from .integrators import resample, RestartConfig, run, solve, StepperConfig
@@ -54,6 +55,7 @@ def simulate(
     dt: float | None = None,
     method: str = "diffrax",
     substeps: int | None = None,
+    fidelity_warning: bool = True,
 ) -> Response:
     r"""Integrate Eq. 1 from $t = 0$ to `t1` with impacts at $u = 0$ (Eqs 1–3).
 
@@ -73,7 +75,9 @@ def simulate(
       `"smooth"`, `"housner"` (the SDOF Eq. 1 with that restoring force), or
       `"two_spring_2dof"` (the 2-DOF body on its springs); or an `AbstractRestoringForce`
       (e.g. `rockjax.Smooth(width=0.1)`) or an `AbstractRockingModel` instance (e.g.
-      `rockjax.TwoSpring2DOF(damping=...)`). Every model runs on every `method`.
+      `rockjax.TwoSpring2DOF(damping=...)`), or `"rigid_body"` (the body's own one-DOF
+      equation, `rockjax.RigidBody`). Every model runs on every `method`. Which model
+      for which scene: `docs/models.md`.
     - `r`: coefficient of restitution in [0, 1] (Eq. 2); default `structure.restitution`
       (Eq. 3).
     - `impact` (SDOF models): `"paper"` (default): an impact at every crossing of $u = 0$,
@@ -98,6 +102,10 @@ def simulate(
       the grid and interpolated (cubic Hermite) to `ts`. Much faster for a full record
       (see `benchmarks/results.md`); `solver`, `max_steps`, `adjoint` and `jump_ts` apply
       to `"diffrax"` only.
+    - `fidelity_warning`: warn (`rockjax.FidelityWarning`) when the paper's SDOF model
+      (`"simplified"`, `"exact"`, `"smooth"`, `"housner"`) lifts the structure off by more
+      than 3 u_crit under a ground motion, a scene where it over-predicts the rocking
+      body (`benchmarks/fidelity.md`; default True; never inside `jit`, `grad`, `vmap`).
 
     **Returns:** a `Response` (see its docstring). Runtime failures come back as
     `Response.status`, never as NaN: completed, overturned, max_impacts, solver_failure.
@@ -135,10 +143,13 @@ def simulate(
         ts = jnp.asarray(ts, dtype)
         out = solve(model, structure, excitation, jnp.asarray(t1, dtype), ts,
                     jnp.asarray(r, dtype), cfg)
-        return Response(ts=ts, **out)
-    return _simulate_stepper(structure, excitation, t1f, ts, r, model, method=method,
-                             substeps=substeps, dt=dt, rtol=rtol, atol=atol,
-                             max_impacts=max_impacts)
+        res = Response(ts=ts, **out)
+    else:
+        res = _simulate_stepper(structure, excitation, t1f, ts, r, model, method=method,
+                                substeps=substeps, dt=dt, rtol=rtol, atol=atol,
+                                max_impacts=max_impacts)
+    warn_sdof_lift_off(model, structure, excitation.forced, res.peak_u, fidelity_warning)
+    return res
 
 
 def _default_ts(excitation, ts, t1f):

@@ -11,6 +11,7 @@ import re
 import numpy as np
 
 import rockjax
+from rockjax._fidelity import sdof_lift_off_message
 
 EXIT_USAGE = 2
 
@@ -24,11 +25,24 @@ class CLIError(Exception):
     """A user-facing error: printed as one line, exit code 2."""
 
 
-def add_model_arguments(parser, model_help):
-    """--model (every model of the ladder, from `rockjax.MODELS`), --r and --impact."""
+#: where the --model help sends the user
+MODEL_GUIDE = ("which model for which scene: docs/models.md (the paper's SDOF models "
+               "over-predict a body rocking under ground motion; rigid_body does not)")
+
+
+def add_model_arguments(parser, model_help, fidelity=True):
+    """--model (every model of the ladder, from `rockjax.MODELS`), --r and --impact, and
+    (`fidelity`) --no-fidelity-warning."""
     parser.add_argument(
-        "--model", choices=list(rockjax.MODELS), default="simplified", help=model_help
+        "--model", choices=list(rockjax.MODELS), default="simplified",
+        help=f"{model_help}; {MODEL_GUIDE}",
     )
+    if fidelity:
+        parser.add_argument(
+            "--no-fidelity-warning", dest="fidelity_warning", action="store_false",
+            help="do not warn when the paper's SDOF model lifts the structure off by more "
+            "than 3 u_crit under ground motion",
+        )
     parser.add_argument(
         "--r",
         type=_finite_float("--r"),
@@ -238,6 +252,20 @@ _UNITS = {
 
 
 # ------------------------------------------------------------------ what produced a number
+def fidelity_note(args, structure, forced, peak_u):
+    """The fidelity warning of `rockjax.simulate` in CLI syntax, or None (also when
+    --no-fidelity-warning was given)."""
+    if not getattr(args, "fidelity_warning", True):
+        return None
+    model = rockjax.get_model(args.model, args.impact)
+    msg = sdof_lift_off_message(model, structure, forced, peak_u, model_name=args.model)
+    if msg is None:
+        return None
+    return (msg.replace('use model="rigid_body"', "use --model rigid_body")
+            .replace('or "two_spring_2dof"', "or two_spring_2dof")
+            .replace("silence with fidelity_warning=False", "silence with --no-fidelity-warning"))
+
+
 def model_info(args):
     """The model, impact rule and restitution behind a CLI result (for text and JSON)."""
     return {"model": args.model, "impact": args.impact, "r": "Eq 3" if args.r is None else args.r}

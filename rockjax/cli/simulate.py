@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import sys
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from ._common import (
     add_model_arguments,
     cli_message,
     CLIError,
+    fidelity_note,
     model_info,
     model_line,
     record_info,
@@ -198,8 +200,12 @@ def run(args):
         ts = np.linspace(0.0, t1, max(2, int(round(t1 / _FREE_DT)) + 1))
     else:
         ts = None
-    res = rockjax.simulate(s, excitation, t1, ts=ts, model=args.model, r=args.r, impact=args.impact)
+    res = rockjax.simulate(s, excitation, t1, ts=ts, model=args.model, r=args.r,
+                           impact=args.impact, fidelity_warning=False)
     out = _result(args, s, res, t1, read)
+    out["fidelity_warning"] = fidelity_note(args, s, excitation.forced, res.peak_u)
+    if out["fidelity_warning"]:
+        print(f"warning: {out['fidelity_warning']}", file=sys.stderr)
     if args.out:
         cols = {k: np.asarray(getattr(res, k)) for k in ("ts", "u", "v", "theta", "uplift")}
         cols["t"] = cols.pop("ts")

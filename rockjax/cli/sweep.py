@@ -17,6 +17,7 @@ import dataclasses
 import json
 import math
 import pathlib
+import sys
 import time
 
 import numpy as np
@@ -39,6 +40,7 @@ from ._common import (
     add_model_arguments,
     cli_message,
     CLIError,
+    fidelity_note,
     model_info,
     model_line,
     record_info,
@@ -370,6 +372,7 @@ class _Sweep:
     t1: float | None
     skipped: dict = dataclasses.field(default_factory=dict)
     results: list[dict] = dataclasses.field(default_factory=list)
+    warnings: list[str] = dataclasses.field(default_factory=list)
     wall: float = 0.0
 
     @property
@@ -449,8 +452,13 @@ def _run_batches(args, sweep):
             substeps=args.substeps,
             summary_only=True,
             progress=False if args.json else None,
+            fidelity_warning=False,
         )
         sweep.results.append({k: np.asarray(getattr(out, k)).reshape(n_s, n_r) for k in _FIELDS})
+        note = fidelity_note(args, s, True, out.peak_u)
+        if note and note not in sweep.warnings:
+            sweep.warnings.append(note)
+            print(f"warning: {note}", file=sys.stderr)
     sweep.wall = time.perf_counter() - t0
 
 
@@ -615,6 +623,7 @@ def _print_json(args, sweep, counts, fractions):
         "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
         "fraction_overturned": fractions,
+        "warnings": sweep.warnings,
     }
     print(json.dumps(out))
 

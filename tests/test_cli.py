@@ -64,6 +64,8 @@ def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
     assert row.split()[-2] == "243" and row.split()[-1] == "completed"
     rigid = next(ln for ln in out.splitlines() if ln.startswith("earthquake, 2-DOF body"))
     assert float(rigid.split()[-4]) < 0.5 * float(row.split()[-4])  # the fidelity finding
+    body = next(ln for ln in out.splitlines() if ln.startswith("earthquake, rigid_body"))
+    assert body.split()[-1] == "completed" and float(body.split()[-4]) < float(row.split()[-4])
 
 
 def test_demo_falls_back_to_synthetic(tmp_path, capsys, monkeypatch):

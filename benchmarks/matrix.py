@@ -26,7 +26,7 @@ import numpy as np
 
 import rockjax
 
-MODELS = ("housner", "simplified", "exact", "smooth", "two_spring_2dof")
+MODELS = ("housner", "simplified", "exact", "smooth", "rigid_body", "two_spring_2dof")
 METHODS = ("diffrax", "rk4", "dopri5")
 DT = 0.01
 T1 = 14.0  # s: the longest record (1000 leading zeros and 4 s of motion)

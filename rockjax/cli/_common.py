@@ -266,14 +266,22 @@ def fidelity_note(args, structure, forced, peak_u):
             .replace("silence with fidelity_warning=False", "silence with --no-fidelity-warning"))
 
 
+#: the models whose impacts are their landings, not the SDOF impact rule
+BODY_MODELS = ("rigid_body", "two_spring_2dof")
+
+
 def model_info(args):
-    """The model, impact rule and restitution behind a CLI result (for text and JSON)."""
-    return {"model": args.model, "impact": args.impact, "r": "Eq 3" if args.r is None else args.r}
+    """The model, impact rule and restitution behind a CLI result (for text and JSON); the
+    body models impact at their landings (`--impact` does not apply to them)."""
+    impact = "landings" if args.model in BODY_MODELS else args.impact
+    return {"model": args.model, "impact": impact, "r": "Eq 3" if args.r is None else args.r}
 
 
 def model_line(info):
     """`model_info` as one line of text."""
     r = info["r"] if isinstance(info["r"], str) else f"{info['r']:g}"
+    if info["impact"] == "landings":
+        return f"{info['model']} model, impacts at landings (Eqs 2-3), r {r}"
     return f"{info['model']} model, impact rule {info['impact']}, r {r}"
 
 

@@ -3,17 +3,28 @@
 Built on rockjax's public API. Read a trace with `read_trace` (CSV with a header such as
 `t,u[,uplift]` in SI units, or with units such as `time_s,disp_mm`; converted to SI), fit
 it with `fit_decay` (k_f, r, and the release displacement u0 and time t0, found in the
-trace by `detect_release`); the synthetic traces in `data/` (`synthetic_trace_path`,
-`synthetic_truth`) are labelled synthetic everywhere.
+trace by `detect_release`; with any model of rockjax's ladder, the 2-DOF body's dashpots
+c_f included, and a lack-of-fit check of the residuals; docs/identification.md); the
+synthetic traces in `data/` (`synthetic_trace_path`, `synthetic_truth`) are labelled
+synthetic everywhere.
 """
 
 from ._fit import (
     fit_decay as fit_decay,
     FitResult as FitResult,
     IdentifiabilityWarning as IdentifiabilityWarning,
+    LackOfFitWarning as LackOfFitWarning,
     OutlierWarning as OutlierWarning,
     PARAM_NAMES as PARAM_NAMES,
     UNITS as UNITS,
+)
+from ._lack import residual_statistics as residual_statistics
+from ._models import (
+    CONTACTS as CONTACTS,
+    DEFAULT_PARAMS as DEFAULT_PARAMS,
+    default_params as default_params,
+    FitModel as FitModel,
+    resolve_model as resolve_model,
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
 from ._trace import (

@@ -1,23 +1,27 @@
-r"""Fit $k_f$, $r$ and the release state $u_0$, $t_0$ to a free-vibration decay trace.
+r"""Fit $k_f$, $r$ (or the dashpots' $c_f$) and the release state $u_0$, $t_0$ to a
+free-vibration decay trace.
 
-The model is `rockjax.simulate` of a release from rest at $u_0$ at time $t_0$ (Eq. 1 with
-impacts, Eqs 2–3); before $t_0$ the structure is held at $u_0$. Since it is released at
-rest, the model is continuously differentiable in $t_0$ (the velocity is 0 on both sides
-of the release), and every sample is defined wherever $t_0$ lies: samples before it (a
-hold) inform $u_0$, the others all four parameters. The residuals are the differences
-between the model and the measured top displacement (and uplift, when the trace has that
-channel), scaled by the trace amplitude. The fit minimises $\tfrac12\|r\|^2$ in
-unconstrained coordinates
+The model is `rockjax.simulate` of a release from rest at $u_0$ at time $t_0$ with any model
+of the fidelity ladder (`identification._models`: the SDOF Eq. 1 with impacts, Eqs 2–3, by
+default; the 2-DOF body with either contact law and its dashpots $c_f$); before $t_0$ the
+structure is held at $u_0$. Since it is released at rest, the model is continuously
+differentiable in $t_0$ (the velocity is 0 on both sides of the release), and every sample
+is defined wherever $t_0$ lies: samples before it (a hold) inform $u_0$, the others all the
+parameters. The residuals are the differences between the model and the measured top
+displacement (and uplift, when the trace has that channel), scaled by the trace amplitude.
+The fit minimises $\tfrac12\|r\|^2$ in unconstrained coordinates
 
 $$z = \big(\log(k_f - k_{f,min}),\ \operatorname{logit} r,\ u_0/u_{s},\
-(t_0 - t_{ref})/10\,\mathrm{ms}\big),$$
+(t_0 - t_{ref})/10\,\mathrm{ms},\ \log c_f\big),$$
 
 where $k_{f,min} = W H_c / (2B^2)$ is the stability limit (Eq. 15) and $t_{ref}$ the
 starting value of $t_0$ (the release found by `identification.detect_release`), with an
 optax optimiser (default: Levenberg–Marquardt, `identification.levenberg_marquardt`), from
 several starts vectorised with `jax.vmap` (oscillatory traces have local minima in phase).
 Standard errors and correlations come from the Gauss–Newton approximation of the Fisher
-information at the optimum (a sandwich over the channels, see `_uncertainty`).
+information at the optimum (a sandwich over the channels, see `_uncertainty`); they hold
+only if the residuals are noise, which the lack-of-fit check (`identification._lack`)
+tests.
 
 The compiled optimiser step takes the trace and the fixed values as arguments: a second fit
 of a trace of the same length, with the same parameters and settings, reuses it.
@@ -39,12 +43,15 @@ import optax
 
 import rockjax
 
+from . import _lack, _models
+from ._models import FitModel
 from ._optim import levenberg_marquardt
 from ._trace import DecayTrace, detect_release, Release, TraceError
 
-PARAM_NAMES = ("k_f", "r", "u0", "t0")
-"""The parameters `fit_decay` can fit, and fits by default."""
-UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s"}
+PARAM_NAMES = ("k_f", "r", "u0", "t0", "c_f")
+"""The parameters `fit_decay` can fit (`DEFAULT_PARAMS`, less those that do not act in the
+model, are fitted by default; see `identification.default_params`)."""
+UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
 """The (SI) unit of each parameter."""
 _T_SCALE = 0.01  # s, unit of t0 in the unconstrained coordinates
 _LM = levenberg_marquardt()  # the default optimiser: one instance, so compiled code is reused
@@ -52,6 +59,11 @@ _LM = levenberg_marquardt()  # the default optimiser: one instance, so compiled 
 
 class IdentifiabilityWarning(UserWarning):
     """The trace does not pin a parameter down (large standard error or correlation)."""
+
+
+class LackOfFitWarning(IdentifiabilityWarning):
+    """The residuals are not noise: the model cannot represent the trace (or the fit is in
+    a local minimum), and the standard errors do not hold (`FitResult.lack_of_fit`)."""
 
 
 class OutlierWarning(UserWarning):
@@ -101,10 +113,11 @@ def _find_outliers(channels, excluded, within, sigmas=OUTLIER_SIGMAS):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class FitResult:
-    """Result of `fit_decay` (SI units: k_f [N/m], r [-], u0 [m], t0 [s]).
+    """Result of `fit_decay` (SI units: k_f [N/m], r [-], u0 [m], t0 [s], c_f [N s/m]).
 
     - `values`, `stderr`: fitted value and standard error of each fitted parameter;
-      `fixed`: the values held fixed.
+      `fixed`: the values held fixed (of the parameters that act in the model); `start`:
+      the starting value of each fitted parameter (the first start).
     - `correlation`: correlation matrix of the fitted parameters (order `names`).
     - `loss`: final $\\tfrac12\\|r\\|^2$ (residuals scaled by `scale` [m]); `rms` [m]: RMS
       residual of the displacement; `sigma` [m]: estimated noise std of the displacement.
@@ -119,6 +132,11 @@ class FitResult:
       none); `loss`, `rms`, `sigma` and the standard errors are over the other samples.
     - `release`: the release found in the trace (`identification.detect_release`, as
       `Release.as_dict()`) and the t0 the fit started from or held (`t0_start_s`).
+    - `lack_of_fit`: whether the displacement residuals are noise (`identification._lack`):
+      their lag-1 autocorrelation and runs test, `fires`, the thresholds, `next_model` (up
+      the ladder) and `message` (also a `LackOfFitWarning` and in `warnings` when it fires).
+    - `model`: the model fitted, in words; `notes`: default parameters left out because
+      they do not act in it (r with continuous contact, say).
     """
 
     names: tuple
@@ -139,16 +157,23 @@ class FitResult:
     scale: float
     outliers: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
     release: dict = dataclasses.field(default_factory=dict)
+    lack_of_fit: dict = dataclasses.field(default_factory=dict)
+    model: str = ""
+    notes: tuple = ()
+    start: dict = dataclasses.field(default_factory=dict)
 
     def summary(self) -> dict:
-        """A JSON-ready dict: values, standard errors, correlation, loss, converged, the
-        release, and `units` (of the parameters, `rms_residual` and `sigma`)."""
+        """A JSON-ready dict: values, standard errors, held and starting values,
+        correlation, loss, converged, the release, the lack-of-fit check, the model fitted
+        (`fitted_model`), notes, and `units` (of the parameters, `rms_residual` and
+        `sigma`)."""
         units = {**UNITS, "rms_residual": "m", "sigma": "m", "loss": "-"}
         return {
             "units": units,
             "values": dict(self.values),
             "stderr": dict(self.stderr),
             "fixed": dict(self.fixed),
+            "start": dict(self.start),
             "correlation": {
                 a: {b: float(self.correlation[i, j]) for j, b in enumerate(self.names)}
                 for i, a in enumerate(self.names)
@@ -162,6 +187,9 @@ class FitResult:
             "warnings": list(self.warnings),
             "outliers": [int(i) for i in self.outliers],
             "release": dict(self.release),
+            "lack_of_fit": dict(self.lack_of_fit),
+            "fitted_model": self.model,
+            "notes": list(self.notes),
         }
 
 
@@ -172,15 +200,16 @@ def _k_min(structure):
 def fit_decay(
     trace,
     structure=None,
-    params=PARAM_NAMES,
+    params=None,
     *,
     model="simplified",
     impact="paper",
+    contact=None,
     initial=None,
-    starts: int = 2,
+    starts: int | None = None,
     optimizer=None,
     max_iter: int = 40,
-    horizons=(0.25, 0.5, 1.0),
+    horizons=None,
     tol: float = 1e-9,
     uplift_weight: float = 1.0,
     rtol: float = 1e-9,
@@ -195,31 +224,51 @@ def fit_decay(
     - `structure`: the `rockjax.RockingStructure` (geometry, masses; default Table 1). Its
       `k_f` and `restitution` (Eq. 3) are the starting values of `k_f` and `r`.
     - `params`: the parameters to fit, any of `"k_f"`, `"r"`, `"u0"` (release displacement
-      [m]) and `"t0"` (release time [s]); default all four. The release is found in the
+      [m]), `"t0"` (release time [s]) and `"c_f"` (the dashpot coefficient of the 2-DOF
+      body [N s/m]). Default (None): `identification.default_params(model, contact=...)`,
+      k_f, r, u0 and t0 less what does not act in the model (with continuous contact, c_f
+      in place of r; with the rigid `housner` law, no k_f: a note in `FitResult.notes`). A
+      parameter that does not act in the model is refused (ValueError naming it): its
+      standard error would be meaningless. The release is found in the
       trace (`identification.detect_release`): u0 and t0 start from it, or are held there
       when not fitted: the first sample's displacement and time for a trace that starts at
       the release, the plateau level and the release time for one that starts with a hold
       or a clock offset. Holding u0 at a noisy first sample biases k_f and r.
-    - `model`, `impact`: passed to `rockjax.simulate`.
+    - `model`: any model of the fidelity ladder, by name (`rockjax.MODELS`: "housner",
+      "simplified", "exact", "smooth", "two_spring_2dof", ...) or as an instance (e.g.
+      `rockjax.TwoSpring2DOF(damping=c_f, contact="continuous")`, whose damping is then the
+      start or held value of c_f); `impact`: the SDOF impact rule (`rockjax.simulate`).
+    - `contact`: the contact law of the 2-DOF body, `"impact"` (Housner's impact at a
+      landing, r) or `"continuous"` (the springs and dashpots carry it; r does not act);
+      None: the model's own (`"impact"` for `"two_spring_2dof"`). Refused for models
+      without one.
     - `initial`: dict of starting values overriding the defaults above (for a parameter
-      not in `params`: the value it is held at).
+      not in `params`: the value it is held at). c_f starts, unless given here or by the
+      model instance, at 5 % of critical damping of the vertical mode,
+      $0.05\sqrt{2k_f(m_e+m_b)}$; held, at the model's damping (0 for "two_spring_2dof").
     - `starts`: number of starting points (vectorised with vmap): the first is `initial`,
-      the others multiply k_f by 1/2, 2, 1/4, 4, ... and shift logit(r) by ±1.
+      the others shift logit(r) (and log c_f) by ±1 and multiply k_f by 2, 1/2, 4, ...
+      Default (None): 2; for the 2-DOF body 3, the others at k_f / 2 and 2 k_f first (its
+      misfit's basin around the true k_f is narrow: see `_models.start_offsets`).
     - `optimizer`: an optax optimiser; default `levenberg_marquardt()`. A plain optax
       optimiser (e.g. `optax.adam(1e-2)`) gets the gradient $J^Tr$.
     - `max_iter`, `tol`: iteration limit (per horizon) and relative loss-change tolerance.
     - `horizons`: fractions of the motion after the release fitted in turn (growing
       horizon; the samples before the release are in all of them), each stage starting
       from the last: short horizons fix r and the phase before later cycles refine k_f,
-      which avoids the local minima of oscillatory fits.
+      which avoids the local minima of oscillatory fits. Default (None): (0.25, 0.5, 1.0);
+      for the 2-DOF body (0.125, 0.25, 0.5, 1.0), whose misfit over a whole trace has
+      many minima in k_f (see `identification._models.default_horizons`).
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
     - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
       if the fit takes more than about 3 s and stderr is a terminal).
 
     **Returns:** a `FitResult`. Warns `IdentifiabilityWarning` when the trace cannot pin a
-    parameter down; never raises for a poor fit (see `converged`). Raises `TraceError` (a
-    `ValueError`) when the trace's amplitude lies beyond the structure's `u_overturn` (a
-    trace in mm read as m, say).
+    parameter down, and `LackOfFitWarning` (a subclass) when the residuals are not noise
+    (`FitResult.lack_of_fit`: the model cannot represent the trace, the standard errors do
+    not hold; the message names the next model up the ladder); never raises for a poor fit
+    (see `converged`). Raises `TraceError` (a `ValueError`) when the trace's amplitude lies
+    beyond the structure's `u_overturn` (a trace in mm read as m, say).
 
     **Outliers:** after a converged fit, the residuals of each channel (displacement, uplift) are
     compared with their robust spread, 1.4826 x the median absolute deviation (the noise
@@ -236,14 +285,16 @@ def fit_decay(
     ```python
     path = identification.synthetic_trace_path("synthetic_decay_noisy")
     fit = identification.fit_decay(identification.read_trace(path), rockjax.mcmanus_column())
-    fit.values["k_f"], fit.stderr["k_f"]
+    fit.values["k_f"], fit.stderr["k_f"], fit.lack_of_fit["fires"]
     ```
     """
-    problem = _setup(trace, structure, params, model=model, impact=impact, initial=initial,
-                     starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
-                     uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress)
+    problem = _setup(trace, structure, params, model=model, impact=impact, contact=contact,
+                     initial=initial, starts=starts, max_iter=max_iter, horizons=horizons,
+                     tol=tol, uplift_weight=uplift_weight, rtol=rtol, atol=atol,
+                     progress=progress)
     transform = _Transform(problem.params, problem.values0, problem.k_min, problem.scale,
-                           problem.t_ref)
+                           problem.t_ref, _models.start_offsets(problem.fit_model),
+                           problem.k_cap)
     model = _Model.build(problem)
     opt = _LM if optimizer is None else optax.with_extra_args_support(optimizer)
     run = _run_stages(problem, model, opt, transform.starting_points(problem.starts),
@@ -258,17 +309,24 @@ def fit_decay(
     if msg is not None:
         messages.append(msg)
         warnings.warn(msg, OutlierWarning, stacklevel=2)
-    return _result(problem, run, best, unc, ident, messages, response)
+    lack = _lack_of_fit(problem, np.asarray(response.u), run.keep)
+    if lack["fires"]:
+        messages.append(lack["message"])
+        warnings.warn(lack["message"], LackOfFitWarning, stacklevel=2)
+    return _result(problem, run, best, unc, ident, messages, response, lack)
+
+
+def _lack_of_fit(problem: _Problem, u_fit: np.ndarray, keep: np.ndarray) -> dict:
+    """The lack-of-fit check of the displacement residuals (kept samples, time order)."""
+    e = (u_fit - problem.u_meas)[keep]
+    rms = float(np.sqrt(np.mean(e**2)))
+    fm = problem.fit_model
+    return _lack.lack_of_fit(e, rms, problem.scale, fm.describe(),
+                             _models.models_above(fm, problem.params))
 
 
 _CHUNK = 4
 """Optimiser steps per compiled call (one `jax.lax.scan`) between convergence checks."""
-
-# (log k_f shift, logit r shift) of each start: r first, since the decay envelope and the
-# impact times (the phase) depend on it most
-_START_OFFSETS = ((0.0, 0.0), (0.0, 1.0), (0.0, -1.0), (math.log(2), 0.0),
-                  (-math.log(2), 0.0), (math.log(2), 1.0), (-math.log(2), 1.0),
-                  (math.log(4), 0.0))
 
 
 # ------------------------------------------------------------------ arguments
@@ -280,7 +338,7 @@ class _Problem:
 
     structure: object
     params: tuple
-    model: object
+    fit_model: FitModel  # the model simulated, and the parameters that act in it
     impact: str
     horizons: tuple  # fractions of the trace, floats
     starts: int
@@ -297,6 +355,8 @@ class _Problem:
     values0: dict  # starting (or fixed) values of all of PARAM_NAMES
     k_min: float  # stability limit of k_f (Eq. 15) [N/m]
     release: Release  # found in the trace (detect_release)
+    k_cap: float | None = None  # the (smooth) upper bound of k_f, None: none
+    notes: tuple = ()  # default parameters left out (they do not act in the model)
 
     @property
     def t_ref(self) -> float:
@@ -327,7 +387,10 @@ def _check_structure(structure):
     return structure
 
 
-def _check_params(params) -> tuple:
+def _check_params(params, fm: FitModel) -> tuple:
+    """The parameters to fit, checked (the default ones of the model for None)."""
+    if params is None:
+        return _models._defaults(fm)
     if isinstance(params, str):
         raise ValueError(
             f"params must be a sequence of names from {PARAM_NAMES}, e.g. ('k_f', 'r'), "
@@ -337,16 +400,16 @@ def _check_params(params) -> tuple:
     bad = [p for p in params if p not in PARAM_NAMES]
     if bad or not params or len(set(params)) != len(params):
         raise ValueError(f"params must be distinct names from {PARAM_NAMES}, got {params}")
+    _models.refuse_inactive(fm, params)
     return params
 
 
-def _check_options(starts, max_iter, model, impact, horizons, tol, uplift_weight) -> tuple:
+def _check_options(starts, max_iter, impact, horizons, tol, uplift_weight) -> tuple:
     """Check the optimiser and simulation options; returns `horizons` as a tuple of floats."""
     if not (isinstance(starts, int) and starts >= 1):
         raise ValueError(f"starts must be a positive integer, got {starts!r}")
     if not (isinstance(max_iter, int) and max_iter >= 1):
         raise ValueError(f"max_iter must be a positive integer, got {max_iter!r}")
-    rockjax.get_model(model)  # ValueError naming the model if unknown
     if impact not in rockjax.IMPACT_RULES:
         raise ValueError(f"impact must be one of {rockjax.IMPACT_RULES}, got {impact!r}")
     try:
@@ -415,7 +478,7 @@ def _check_amplitude(trace: DecayTrace, amplitude: float, u_overturn: float):
     )
 
 
-def _starting_values(structure, release: Release, initial):
+def _starting_values(structure, release: Release, initial, fm: FitModel, params: tuple):
     """(starting values of all of PARAM_NAMES, the stability limit k_min of k_f)."""
     values0 = {
         "k_f": float(structure.k_f),
@@ -447,24 +510,64 @@ def _starting_values(structure, release: Release, initial):
         )
     if not 0.0 < values0["r"] < 1.0:
         raise ValueError(f"initial r must lie strictly inside (0, 1), got {values0['r']}")
+    values0["c_f"] = _start_c_f(structure, values0, initial, fm, params)
+    k_cap = _models.k_f_cap(fm, k_min)
+    if k_cap is not None and not values0["k_f"] < 0.1 * k_cap:
+        raise ValueError(
+            f"initial k_f must lie below {0.1 * k_cap:.6g} N/m ({0.1 * _models.K_F_CAP:g} x "
+            f"the stability limit) with the {fm.describe()} model, got {values0['k_f']:.6g} "
+            "N/m: its fits bound k_f (the foundation is rigid for any purpose beyond)"
+        )
     return values0, k_min
 
 
+def _start_c_f(structure, values0: dict, initial, fm: FitModel, params: tuple) -> float:
+    """The start (or held value) of c_f [N s/m]: `initial`, else the model instance's
+    damping, else (fitted) 5 % of critical of the vertical mode at the starting k_f."""
+    given = (initial or {}).get("c_f")
+    if given is not None and not fm.has_dashpots:
+        raise ValueError(
+            f"initial c_f: c_f (the dashpot coefficient of the 2-DOF body) is not a "
+            f"parameter of the {fm.describe()} model; leave it out of initial"
+        )
+    if given is not None:
+        c_f = values0["c_f"]  # checked to be a finite number above
+    else:
+        c_f = _models.model_damping(fm)
+        if "c_f" in params and not c_f > 0:
+            c_f = _models.c_f_start(structure, values0["k_f"])
+    if "c_f" in params and not c_f > 0:
+        raise ValueError(
+            f"initial c_f must be positive to be fitted (its logarithm is), got {c_f:g} N s/m"
+        )
+    if not c_f >= 0:
+        raise ValueError(f"initial c_f must be >= 0 (a dashpot coefficient), got {c_f:g} N s/m")
+    return c_f
+
+
 def _setup(trace, structure, params, *, model, impact, initial, starts, max_iter, horizons,
-           tol, uplift_weight, rtol, atol, progress) -> _Problem:
+           tol, uplift_weight, rtol, atol, progress, contact=None) -> _Problem:
     """Check and normalise the arguments of `fit_decay` (ValueError on the first bad one)."""
     structure = _check_structure(structure)
-    params = _check_params(params)
-    horizons = _check_options(starts, max_iter, model, impact, horizons, tol, uplift_weight)
+    # ValueError naming the model (or the impact rule, or the contact law) if unknown
+    fm = _models.resolve_model(model, impact, contact)
+    notes = tuple(_models.default_notes(fm)) if params is None else ()
+    params = _check_params(params, fm)
+    if horizons is None:
+        horizons = _models.default_horizons(fm)
+    if starts is None:
+        starts = _models.default_starts(fm)
+    horizons = _check_options(starts, max_iter, impact, horizons, tol, uplift_weight)
     trace = _as_trace(trace)
     t, u_meas, up_meas, scale = _trace_arrays(trace, params, structure)
     release = detect_release(trace)
-    values0, k_min = _starting_values(structure, release, initial)
+    values0, k_min = _starting_values(structure, release, initial, fm, params)
     return _Problem(
-        structure=structure, params=params, model=model, impact=impact, horizons=horizons,
+        structure=structure, params=params, fit_model=fm, impact=impact, horizons=horizons,
         starts=starts, max_iter=max_iter, tol=tol, uplift_weight=uplift_weight, rtol=rtol,
         atol=atol, progress=progress, t=t, u_meas=u_meas, up_meas=up_meas, scale=scale,
-        values0=values0, k_min=k_min, release=release,
+        values0=values0, k_min=k_min, release=release, notes=notes,
+        k_cap=_models.k_f_cap(fm, k_min),
     )
 
 
@@ -484,21 +587,33 @@ class _Transform:
     k_min: float
     scale: float
     t_ref: float
+    offsets: tuple = _models.SDOF_START_OFFSETS  # (log k_f, dissipation) shift of each start
+    k_cap: float | None = None  # smooth upper bound of k_f (see _k_f_of_z)
 
     def encode(self, v: dict) -> dict:
-        """Natural values of all four parameters -> their z coordinates."""
+        """Natural values of all the parameters -> their z coordinates."""
+        y = math.log(v["k_f"] - self.k_min)
+        if self.k_cap is not None:  # the inverse of _k_f_of_z
+            span = math.log(self.k_cap - self.k_min)
+            y = span - math.log(math.expm1(span - y))
         return {
-            "k_f": math.log(v["k_f"] - self.k_min),
+            "k_f": y,
             "r": math.log(v["r"] / (1.0 - v["r"])),
             "u0": v["u0"] / self.scale,
             "t0": (v["t0"] - self.t_ref) / _T_SCALE,
+            "c_f": math.log(v["c_f"]) if v["c_f"] > 0 else -math.inf,  # fitted: > 0
         }
 
     def derivatives(self, z) -> list:
         """d(natural value)/dz of each fitted parameter at the point `z` (floats)."""
         out = []
         for p, zi in zip(self.params, z):
-            if p == "k_f":
+            if p == "k_f" and self.k_cap is not None:
+                span = math.log(self.k_cap - self.k_min)
+                x = span - zi
+                soft = max(x, 0.0) + math.log1p(math.exp(-abs(x)))
+                out.append(math.exp(span - soft) / (1.0 + math.exp(-x)))
+            elif p in ("k_f", "c_f"):
                 out.append(math.exp(zi))
             elif p == "r":
                 s_ = 1.0 / (1.0 + math.exp(-zi))
@@ -510,16 +625,17 @@ class _Transform:
         return out
 
     def starting_points(self, n: int) -> np.ndarray:
-        """`n` starting points (n, P): `values0`, then k_f and r shifted (_START_OFFSETS)."""
+        """`n` starting points (n, P): `values0`, then k_f and the dissipation (logit r,
+        log c_f) shifted (`offsets`)."""
         z0 = self.encode(self.values0)
         base = np.array([z0[p] for p in self.params])
         starts_z = []
         for i in range(n):
-            dk, dr = _START_OFFSETS[i % len(_START_OFFSETS)]
-            dk *= 1 + i // len(_START_OFFSETS)
+            dk, dr = self.offsets[i % len(self.offsets)]
+            dk *= 1 + i // len(self.offsets)
             zi = base.copy()
             for j, p in enumerate(self.params):
-                zi[j] += dk if p == "k_f" else dr if p == "r" else 0.0
+                zi[j] += dk if p == "k_f" else dr if p in ("r", "c_f") else 0.0
             starts_z.append(zi)
         return np.stack(starts_z)
 
@@ -544,9 +660,11 @@ class _Model(eqx.Module):
     scale: jax.Array
     t_ref: jax.Array
     eps: jax.Array  # spacing of the model times of the samples before the release [s]
+    k_span: jax.Array | None  # log(k_cap - k_min): the bound of k_f, None: unbounded
     uplift_weight: jax.Array
-    model: object  # a model name (static) or a model instance
+    model: object  # the model instance (its dashpot coefficient an array, set from c_f)
     params: tuple = eqx.field(static=True)
+    dashpots: bool = eqx.field(static=True)  # the model has a dashpot coefficient (c_f)
     impact: str = eqx.field(static=True)
     rtol: float = eqx.field(static=True)
     atol: float = eqx.field(static=True)
@@ -560,22 +678,26 @@ class _Model(eqx.Module):
             up=arr(pb.up_meas) if pb.fits_uplift else None,
             values0={k: arr(float(v)) for k, v in pb.values0.items()},
             k_min=arr(pb.k_min), scale=arr(pb.scale), t_ref=arr(pb.t_ref),
+            k_span=None if pb.k_cap is None else arr(math.log(pb.k_cap - pb.k_min)),
             eps=arr(1e-9 * float(np.median(np.diff(pb.t))) / n),
-            uplift_weight=arr(float(pb.uplift_weight)), model=pb.model, params=pb.params,
-            impact=pb.impact, rtol=float(pb.rtol), atol=float(pb.atol),
+            uplift_weight=arr(float(pb.uplift_weight)), model=_model_instance(pb),
+            params=pb.params, dashpots=pb.fit_model.has_dashpots, impact=pb.impact,
+            rtol=float(pb.rtol), atol=float(pb.atol),
         )
 
     def decode(self, z) -> dict:
-        """Unconstrained z (fitted params only) -> dict of all four natural values."""
+        """Unconstrained z (fitted params only) -> dict of all the natural values."""
         out = dict(self.values0)
         for i, name in enumerate(self.params):
             zi = z[i]
             if name == "k_f":
-                out["k_f"] = self.k_min + jnp.exp(zi)
+                out["k_f"] = self.k_min + jnp.exp(_k_f_of_z(zi, self.k_span))
             elif name == "r":
                 out["r"] = jax.nn.sigmoid(zi)
             elif name == "u0":
                 out["u0"] = zi * self.scale
+            elif name == "c_f":
+                out["c_f"] = jnp.exp(zi)
             else:
                 out["t0"] = self.t_ref + zi * _T_SCALE
         return out
@@ -590,9 +712,12 @@ class _Model(eqx.Module):
         """
         v = self.decode(z)
         s = self.structure.replace(k_f=v["k_f"])
+        model = self.model
+        if self.dashpots:
+            model = eqx.tree_at(lambda m: m.damping, model, v["c_f"])
         ts = jnp.maximum(self.t - v["t0"], self.eps * jnp.arange(self.t.shape[0]))
         return rockjax.simulate(
-            s, rockjax.FreeVibration(v["u0"]), ts[-1], ts=ts, r=v["r"], model=self.model,
+            s, rockjax.FreeVibration(v["u0"]), ts[-1], ts=ts, r=v["r"], model=model,
             impact=self.impact, rtol=self.rtol, atol=self.atol, adjoint="forward",
         )
 
@@ -610,6 +735,22 @@ class _Model(eqx.Module):
     def res_jac(self, z, mask):
         """The residuals and their Jacobian d r / d z (forward mode)."""
         return self.residuals(z, mask), jax.jacfwd(self.residuals)(z, mask)
+
+
+def _k_f_of_z(z, span):
+    """log(k_f - k_min) from its coordinate z: z itself, or with a smooth upper bound
+    `span` = log(k_cap - k_min): span - softplus(span - z), = z - e^(z - span) well below."""
+    return z if span is None else span - jax.nn.softplus(span - z)
+
+
+def _model_instance(pb: _Problem):
+    """The model instance of the fit, with its dashpot coefficient as an array (a Python
+    float would be static under `eqx.filter_jit`: a compile per value)."""
+    model = pb.fit_model.model
+    if pb.fit_model.has_dashpots:
+        c_f = jnp.asarray(float(pb.values0["c_f"]))
+        model = eqx.tree_at(lambda m: m.damping, model, c_f)
+    return model
 
 
 @eqx.filter_jit
@@ -708,8 +849,10 @@ def _run_horizon(problem: _Problem, model: _Model, opt, run: _Run, stage: int, f
     params, horizons = problem.params, problem.horizons
     mask = jnp.asarray(problem.within(frac) & run.keep, dtype=float)
     # On the first (short) horizon k_f and r are nearly collinear (the early cycles
-    # depend on r, the phase and u0); k_f is held there and freed afterwards.
-    freeze_kf = stage == 0 and len(horizons) > 1 and "k_f" in params and len(params) > 1
+    # depend on r, the phase and u0); k_f is held there and freed afterwards. Without r
+    # (continuous contact) the first bounces on the springs pin k_f: it is free throughout.
+    freeze_kf = (stage == 0 and len(horizons) > 1 and "k_f" in params and len(params) > 1
+                 and "r" in problem.fit_model.acting)
     free = jnp.asarray([0.0 if (p == "k_f" and freeze_kf) else 1.0 for p in params])
     best_prev = np.full(problem.starts, np.inf)
     stall = np.zeros(problem.starts, int)
@@ -883,22 +1026,32 @@ def _identifiability(problem: _Problem, best: _Best, unc: _Uncertainty):
         "relative_stderr": {p: float(se[j] / abs(vals_nat[p])) if vals_nat[p] else None
                             for j, p in enumerate(params)},
     }
-    if "k_f" in params and "r" in params:
-        ident["corr_k_f_r"] = float(unc.corr[params.index("k_f"), params.index("r")])
+    for other in ("r", "c_f"):
+        if "k_f" in params and other in params:
+            ident[f"corr_k_f_{other}"] = float(unc.corr[params.index("k_f"),
+                                                        params.index(other)])
     messages = []
     for j, p in enumerate(params):
         rel = se[j] / abs(vals_nat[p]) if vals_nat[p] else np.inf
-        if p != "t0" and not rel < 0.1:
+        if sens[p] == 0.0:  # an exactly zero Jacobian column
+            messages.append(
+                f"the trace does not pin {p} down: it does not depend on {p} at all "
+                f"(nothing in this trace, or in the {problem.fit_model.describe()} model, "
+                f"brings {p} into play: an impact for r, say); leave it out of params"
+            )
+        elif p != "t0" and not rel < 0.1:
             messages.append(
                 f"the trace does not pin {p} down: standard error {100 * rel:.3g} % of its "
                 f"value (a 1 % change moves the trace by {sens[p]:.3g} m RMS, noise "
                 f"{sigma:.3g} m)"
             )
-    if abs(ident.get("corr_k_f_r", 0.0)) > 0.95:
-        messages.append(
-            f"k_f and r are strongly correlated (rho = {ident['corr_k_f_r']:.3f}): the trace "
-            "constrains a combination of them, not each"
-        )
+    for other in ("r", "c_f"):
+        rho = ident.get(f"corr_k_f_{other}", 0.0)
+        if abs(rho) > 0.95:
+            messages.append(
+                f"k_f and {other} are strongly correlated (rho = {rho:.3f}): the trace "
+                "constrains a combination of them, not each"
+            )
     return ident, messages
 
 
@@ -923,7 +1076,7 @@ def _outlier_message(problem: _Problem, u_fit: np.ndarray, keep: np.ndarray,
 
 
 def _result(problem: _Problem, run: _Run, best: _Best, unc: _Uncertainty, ident: dict,
-            messages: list, response) -> FitResult:
+            messages: list, response, lack: dict) -> FitResult:
     params, vals_nat, loss, keep = problem.params, unc.values, best.loss, run.keep
     u_fit = np.asarray(response.u)
     converged = bool(run.converged[best.index]) and np.isfinite(loss) and loss < 1e5
@@ -931,7 +1084,8 @@ def _result(problem: _Problem, run: _Run, best: _Best, unc: _Uncertainty, ident:
         names=params,
         values={p: vals_nat[p] for p in params},
         stderr={p: float(unc.se[j]) for j, p in enumerate(params)},
-        fixed={p: vals_nat[p] for p in PARAM_NAMES if p not in params},
+        fixed={p: vals_nat[p] for p in PARAM_NAMES
+               if p not in params and p in problem.fit_model.acting},
         correlation=np.asarray(unc.corr),
         loss=loss,
         rms=float(np.sqrt(np.mean((u_fit - problem.u_meas)[keep] ** 2))),
@@ -947,4 +1101,8 @@ def _result(problem: _Problem, run: _Run, best: _Best, unc: _Uncertainty, ident:
         outliers=np.flatnonzero(~keep),
         release={**problem.release.as_dict(), "t0_start_s": problem.values0["t0"],
                  "u0_start_m": problem.values0["u0"]},
+        lack_of_fit=lack,
+        model=problem.fit_model.describe(),
+        notes=problem.notes,
+        start={p: float(problem.values0[p]) for p in params},
     )

@@ -1,4 +1,5 @@
-"""`rockjax fit`: fit k_f, r, u0 and t0 to a measured free-vibration decay trace.
+"""`rockjax fit`: fit k_f, r (or the 2-DOF body's dashpots c_f), u0 and t0 to a measured
+free-vibration decay trace, with any model of the ladder, and check the fit's residuals.
 
 `identification` (optax and the fit's JAX code) is imported inside the functions that need
 it, so that `rockjax --help` and the other commands do not pay for it.
@@ -19,6 +20,7 @@ from rockjax import _plotting
 from ._common import (
     _check_png,
     _load_structure,
+    _positive_float,
     _starts,
     add_model_arguments,
     CLIError,
@@ -26,8 +28,9 @@ from ._common import (
     model_line,
 )
 
-_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s"}
-_PARAMS = ("k_f", "r", "u0", "t0")
+_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
+_PARAMS = ("k_f", "r", "u0", "t0", "c_f")
+_CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
 _CHANNELS = ("t", "u", "uplift")
 
 
@@ -55,16 +58,19 @@ def _channel_map(option):
 def add_parser(subparsers):
     f = subparsers.add_parser(
         "fit",
-        help="fit k_f, r, u0 and t0 to a measured free-vibration decay trace",
-        description="Fit the foundation stiffness k_f, the coefficient of restitution r, "
-        "the release displacement u0 and the release time t0 of a structure to a "
+        help="fit k_f, r (or c_f), u0 and t0 to a measured free-vibration decay trace",
+        description="Fit the foundation stiffness k_f, the coefficient of restitution r "
+        "(with --model two_spring_2dof --contact continuous: the dashpot coefficient c_f "
+        "instead), the release displacement u0 and the release time t0 of a structure to a "
         "free-vibration decay trace: a CSV file with a header such as 't,u', 't,u,uplift', "
         "'time_s,disp_mm' or 't [s],u [mm],uplift [mm]' (units s, ms, us, min; m, cm, mm, "
         "um, in; none: SI; leading '#' comment lines allowed). The trace may start before "
         "the release (a hold at u0, or any clock): the release is detected and t0 fitted "
         "from there. The fit starts from the structure's k_f and its Eq 3 restitution and "
-        "reports standard errors, the k_f-r correlation, identifiability warnings, and "
-        "what was read.",
+        "reports standard errors, the k_f-r correlation, identifiability warnings, a "
+        "lack-of-fit check (residuals that are not noise: the model cannot represent the "
+        "trace, the standard errors do not hold, and the next model up the ladder), and "
+        "what was read. The 2-DOF body's fits take minutes.",
     )
     f.add_argument("trace", metavar="TRACE.csv", help="decay trace (time, displacement, "
                    "optional uplift)")
@@ -77,12 +83,15 @@ def add_parser(subparsers):
         "--params",
         nargs="+",
         choices=list(_PARAMS),
-        default=list(_PARAMS),
         metavar="P",
-        help="parameters to fit, from k_f r u0 t0 (default: all four); the others are held "
-        "at the structure's values (k_f, Eq 3 r or --r) and the detected release (u0, t0)",
+        help="parameters to fit, from k_f r u0 t0 c_f (default: k_f r u0 t0, less what does "
+        "not act in the model: with --contact continuous, c_f in place of r; with housner, "
+        "no k_f); the others are held at the structure's values (k_f, Eq 3 r or --r, --c-f) "
+        "and the detected release (u0, t0); c_f only with two_spring_2dof",
     )
-    add_model_arguments(f, "restoring-force model (default simplified)")
+    add_model_arguments(f, "model of the ladder (default simplified): the SDOF laws, or "
+                        "two_spring_2dof, the 2-DOF body on its springs (see --contact)")
+    _add_2dof_arguments(f)
     f.add_argument(
         "--columns",
         type=_channel_map("--columns"),
@@ -111,18 +120,42 @@ def add_parser(subparsers):
     return f
 
 
+def _add_2dof_arguments(f):
+    f.add_argument(
+        "--contact",
+        choices=list(_CONTACTS),
+        help="contact law of the 2-DOF body (two_spring_2dof only): impact (its default: a "
+        "landing corner is Housner's impact, r) or continuous (the springs and dashpots "
+        "carry the impacts: r does not act, c_f is fitted in its place)",
+    )
+    f.add_argument(
+        "--c-f",
+        dest="c_f",
+        type=_positive_float("--c-f"),
+        metavar="C",
+        help="dashpot coefficient c_f of the 2-DOF body [N s/m]: the start when c_f is "
+        "fitted (default 5 %% of critical of the vertical mode, 0.05 sqrt(2 k_f (m_e + "
+        "m_b))), else the value held (default 0: no dashpots)",
+    )
+
+
 def _fit_trace(trace, structure, params, *, model="simplified", impact="paper", r=None,
-               starts=None, progress=None):
+               starts=None, progress=None, contact=None, c_f=None):
     """`identification.fit_decay` from the structure's k_f and r (Eq 3, or `r`: also its
-    held value when r is not fitted). IdentifiabilityWarnings and OutlierWarnings are
-    captured (their messages are in `fit.warnings`, printed by the caller), other warnings
-    are passed on."""
+    held value when r is not fitted; `c_f`: the start or held value of c_f).
+    IdentifiabilityWarnings (LackOfFitWarnings included) and OutlierWarnings are captured
+    (their messages are in `fit.warnings`, printed by the caller), other warnings are
+    passed on. `params` None: the model's default parameters."""
     import identification  # heavy (optax, the fit's JAX code): only when a fit runs
 
+    fitted = (identification.default_params(model, impact=impact, contact=contact)
+              if params is None else tuple(params))
     initial = {"k_f": float(structure.k_f),
                "r": float(structure.restitution) if r is None else float(r)}
     if r is None:
-        initial = {k: v for k, v in initial.items() if k in params}
+        initial = {k: v for k, v in initial.items() if k in fitted}
+    if c_f is not None:
+        initial["c_f"] = float(c_f)
     kwargs = {} if starts is None else {"starts": starts}
     with warnings.catch_warnings(record=True) as caught:
         shown = (identification.IdentifiabilityWarning, identification.OutlierWarning)
@@ -131,9 +164,10 @@ def _fit_trace(trace, structure, params, *, model="simplified", impact="paper", 
         fit = identification.fit_decay(
             trace,
             structure,
-            params=tuple(params),
+            params=None if params is None else tuple(params),
             model=model,
             impact=impact,
+            contact=contact,
             initial=initial,
             progress=progress,
             **kwargs,
@@ -161,17 +195,33 @@ def _fit_value_table(fit, truth=None):
 
 def _fit_stats_lines(fit):
     lines = []
-    rho = fit.identifiability.get("corr_k_f_r")
-    if rho is not None:
-        lines.append(f"corr(k_f, r)  {rho:+.4f}")
+    for other in ("r", "c_f"):
+        rho = fit.identifiability.get(f"corr_k_f_{other}")
+        if rho is not None:
+            lines.append(f"{f'corr(k_f, {other})':<14}{rho:+.4f}")
     lines.append(f"loss          {fit.loss:.6g}  (1/2 sum of squared residuals / scale^2)")
     lines.append(f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)")
     lines.append(
         f"converged     {'yes' if fit.converged else 'NO'}  ({fit.n_iterations} iterations)"
     )
+    lines.append(lack_of_fit_line(fit.lack_of_fit))
+    for note in fit.notes:
+        lines.append(f"note: {note}")
     for w in fit.warnings:
         lines.append(f"warning: {w}")
     return lines
+
+
+def lack_of_fit_line(lack):
+    """The lack-of-fit check in one line: its statistics, thresholds and verdict."""
+    if not lack:
+        return "lack of fit   not checked"
+    th = lack["thresholds"]
+    verdict = ("FIRES: the model cannot represent the trace, standard errors do not hold"
+               if lack["fires"] else "no (residuals consistent with noise)")
+    return (f"lack of fit   {verdict}; lag-1 autocorrelation "
+            f"{lack['lag1_autocorrelation']:+.3f} (limit {th['lag1_autocorrelation']:g}), "
+            f"runs z {lack['runs_z']:+.1f} (limit {th['runs_z']:g})")
 
 
 def plot_fit(trace, fit, *, title=None, measured_label="measured"):
@@ -216,15 +266,29 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
     return fig
 
 
-def _fit_model_info(args, s, params):
-    """`model_info(args)` for a fit: r is fitted (from Eq 3 or --r) or held."""
+def _fit_model_info(args, s, fit):
+    """`model_info(args)` for a fit: r is fitted (from Eq 3 or --r), held, or not used
+    (continuous contact); for the 2-DOF body, its contact law and c_f."""
     info = model_info(args)
     r0 = float(s.restitution) if args.r is None else float(args.r)
     src = "Eq 3" if args.r is None else "--r"
-    info["r"] = (f"fitted, start {r0:.4g} ({src})" if "r" in params
-                 else f"held at {r0:.4g} ({src})")
+    if "r" in fit.names:
+        info["r"] = f"fitted, start {r0:.4g} ({src})"
+    elif "r" in fit.fixed:
+        info["r"] = f"held at {r0:.4g} ({src})"
+    else:
+        info["r"] = "not used (contact continuous)"
     info["start_k_f_N_m"] = float(s.k_f)
     info["start_r"] = r0
+    if "c_f" in fit.names or "c_f" in fit.fixed:  # the 2-DOF body
+        import identification
+
+        info["contact"] = identification.resolve_model(args.model, args.impact,
+                                                       args.contact).contact
+        src = "--c-f" if args.c_f is not None else "default"
+        info["c_f"] = (f"fitted, start {fit.start['c_f']:.4g} N s/m ({src})"
+                       if "c_f" in fit.names else
+                       f"held at {fit.fixed['c_f']:.4g} N s/m ({src})")
     return info
 
 
@@ -262,13 +326,14 @@ def release_line(fit):
     return f"{found}; {used}"
 
 
-def _print_report(args, s, trace, fit, params, info, read_warnings):
+def _print_report(args, s, trace, fit, info, read_warnings):
     lines = trace_lines(trace.info())
     print(f"trace         {lines[0]}")
     for line in lines[1:]:
         print(f"              {line}")
     print(f"release       {release_line(fit)}")
-    print(f"model         {model_line(info)}; start k_f = {float(s.k_f):.6g} N/m")
+    extra = (f"; contact {info['contact']}, c_f {info['c_f']}" if "c_f" in info else "")
+    print(f"model         {model_line(info)}{extra}; start k_f = {float(s.k_f):.6g} N/m")
     print()
     print(_fit_value_table(fit))
     print()
@@ -276,7 +341,7 @@ def _print_report(args, s, trace, fit, params, info, read_warnings):
         print(f"warning: {w}")
     for line in _fit_stats_lines(fit):
         print(line)
-    if "u0" not in params:
+    if "u0" not in fit.names:
         print(
             f"note: u0 held at {fit.fixed['u0']:.6g} m (the first sample, or the level of "
             "the hold); for noisy traces fit it (the default --params)"
@@ -314,19 +379,21 @@ def run(args):
     import identification  # heavy (optax, the fit's JAX code): only when a fit runs
 
     _check_png(args.plot)
-    params = tuple(args.params)
-    if len(set(params)) != len(params):
+    params = None if args.params is None else tuple(args.params)
+    if params is not None and len(set(params)) != len(params):
         raise CLIError(f"--params: each parameter at most once, got {' '.join(params)}")
     if args.r is not None and not 0.0 < args.r < 1.0:
         raise CLIError(f"--r must lie strictly inside (0, 1) for a fit, got {args.r}")
+    _check_model_options(args, identification)
     s = _load_structure(args.structure)
     trace, read_warnings = _read(args)
-    info = _fit_model_info(args, s, params)
     try:
         fit = _fit_trace(trace, s, params, model=args.model, impact=args.impact, r=args.r,
-                         starts=args.starts, progress=False if args.json else None)
+                         starts=args.starts, progress=False if args.json else None,
+                         contact=args.contact, c_f=args.c_f)
     except identification.TraceError as e:
         raise CLIError(e.cli_message) from None
+    info = _fit_model_info(args, s, fit)
     if args.plot:
         fig = plot_fit(
             trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, {model_line(info)}"
@@ -339,5 +406,20 @@ def run(args):
         print(json.dumps({"file": str(args.trace), "model": info, "trace": trace.info(),
                           **summary, "t0_used_s": t0}))
         return 0
-    _print_report(args, s, trace, fit, params, info, read_warnings)
+    _print_report(args, s, trace, fit, info, read_warnings)
     return 0
+
+
+def _check_model_options(args, identification):
+    """--contact, --c-f and --r against the model, in the command line's terms."""
+    try:
+        fm = identification.resolve_model(args.model, args.impact, args.contact)
+    except ValueError as e:  # --model and --impact are argparse choices: --contact
+        raise CLIError(f"--contact: {e}") from None
+    if args.c_f is not None and not fm.has_dashpots:
+        raise CLIError(f"--c-f: c_f (the dashpot coefficient of the 2-DOF body) is not a "
+                       f"parameter of the {fm.describe()} model; use --model two_spring_2dof")
+    if args.r is not None and "r" not in fm.acting:
+        raise CLIError("--r does not act with --contact continuous: the springs and dashpots "
+                       "carry the impacts (c_f is fitted for the dissipation; --c-f sets its "
+                       "start)")

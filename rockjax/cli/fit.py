@@ -89,8 +89,9 @@ def add_parser(subparsers):
         "no k_f); the others are held at the structure's values (k_f, Eq 3 r or --r, --c-f) "
         "and the detected release (u0, t0); c_f only with two_spring_2dof",
     )
-    add_model_arguments(f, "model of the ladder (default simplified): the SDOF laws, or "
-                        "two_spring_2dof, the 2-DOF body on its springs (see --contact)")
+    add_model_arguments(f, "model of the ladder (default simplified): the SDOF laws, "
+                        "rigid_body, or two_spring_2dof, the 2-DOF body on its springs (see "
+                        "--contact)", fidelity=False)
     _add_2dof_arguments(f)
     f.add_argument(
         "--columns",

@@ -6,7 +6,8 @@ residuals are alike and their signs come in long runs. Two statistics of the dis
 residuals (the samples in the fit, in time order) measure it:
 
 - the lag-1 autocorrelation $\rho_1 = \sum_i e_i e_{i+1} / \sum_i e_i^2$ (mean removed).
-  For white noise $\rho_1 \approx N(-1/n, 1/n)$: 0.05 for n = 400 samples. A systematic
+  For white noise $\rho_1 \approx N(-1/n, 1/n)$: 0.05 for n = 400 samples
+  (`lag1_z` = $\rho_1\sqrt n$, in those standard deviations). A systematic
   misfit $s(t)$, smooth on the sampling interval, on top of noise of variance $\sigma^2$
   gives $\rho_1 \approx \overline{s^2}/(\overline{s^2} + \sigma^2)$: the fraction of the
   residual variance that is misfit.
@@ -66,7 +67,9 @@ def residual_statistics(e: np.ndarray) -> dict:
     mu = 2.0 * n_pos * n_neg / m + 1.0 if m else 0.0
     var = (mu - 1.0) * (mu - 2.0) / (m - 1) if m > 1 else 0.0
     z = (runs - mu) / math.sqrt(var) if var > 0 else 0.0
-    return {"n": int(n), "lag1_autocorrelation": rho1, "runs": runs,
+    return {"n": int(n), "lag1_autocorrelation": rho1,
+            "lag1_z": rho1 * math.sqrt(n),  # in standard deviations of white noise
+            "runs": runs,
             "runs_expected": float(mu), "runs_sd": math.sqrt(max(var, 0.0)), "runs_z": float(z)}
 
 

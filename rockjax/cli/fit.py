@@ -199,7 +199,7 @@ def _fit_stats_lines(fit):
     for other in ("r", "c_f"):
         rho = fit.identifiability.get(f"corr_k_f_{other}")
         if rho is not None:
-            lines.append(f"{f'corr(k_f, {other})':<14}{rho:+.4f}")
+            lines.append(f"{f'corr(k_f, {other})':<13} {rho:+.4f}")
     lines.append(f"loss          {fit.loss:.6g}  (1/2 sum of squared residuals / scale^2)")
     lines.append(f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)")
     lines.append(
@@ -277,8 +277,9 @@ def _fit_model_info(args, s, fit):
         info["r"] = f"fitted, start {r0:.4g} ({src})"
     elif "r" in fit.fixed:
         info["r"] = f"held at {r0:.4g} ({src})"
-    else:
+    else:  # continuous contact: no impacts, the springs and dashpots carry the landings
         info["r"] = "not used (contact continuous)"
+        info["impact"] = "none: the springs and dashpots carry the landings"
     info["start_k_f_N_m"] = float(s.k_f)
     info["start_r"] = r0
     if "c_f" in fit.names or "c_f" in fit.fixed:  # the 2-DOF body

@@ -34,7 +34,6 @@ from rockjax.cli import main
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 K_F = 550e3
-RIGID = "rigid_body" in rockjax.MODELS
 
 
 def _bench():
@@ -128,9 +127,8 @@ def test_next_model_up_the_ladder():
     top = "two_spring_2dof with contact='continuous' and c_f fitted"
     for name in ("simplified", "exact", "smooth", "housner"):
         got = nxt(fm(name), ())
-        assert got == "rigid_body" if RIGID else got.startswith(top)
-    if RIGID:
-        assert nxt(fm("rigid_body"), ()).startswith(top)
+        assert got == "rigid_body"
+    assert nxt(fm("rigid_body"), ()).startswith(top)
     assert nxt(fm("two_spring_2dof"), ("k_f", "r")).startswith(top)
     cont = fm("two_spring_2dof", contact="continuous")
     assert nxt(cont, ("k_f", "c_f")) is None
@@ -247,8 +245,7 @@ def test_sdof_fit_of_the_2dof_trace_is_flagged(sdof_of_2dof, continuous):
     assert len(msgs) == 1 and msgs[0] == lack["message"] and msgs[0] in fit.warnings
     assert "the simplified model cannot represent this trace" in msgs[0]
     assert "the standard errors do not hold" in msgs[0]
-    ladder = ("rigid_body, then two_spring_2dof with contact='continuous' and c_f fitted"
-              if RIGID else "two_spring_2dof with contact='continuous' and c_f fitted")
+    ladder = "rigid_body, then two_spring_2dof with contact='continuous' and c_f fitted"
     assert f"the next model up the ladder is {ladder}" in msgs[0]
     summary = json.loads(json.dumps(fit.summary()))  # JSON-ready
     assert summary["lack_of_fit"]["fires"] is True and summary["fitted_model"] == "simplified"
@@ -262,7 +259,7 @@ def test_sdof_fit_of_the_shipped_sdof_trace_is_not_flagged():
     print("SDOF on its own trace:", lack)
     assert fit.converged and not lack["fires"] and not lack_warnings(caught)
     assert abs(lack["lag1_autocorrelation"]) < 0.15 and abs(lack["runs_z"]) < 3
-    assert lack["next_model"] == ("rigid_body" if RIGID else lack["next_model"])
+    assert lack["next_model"] == "rigid_body"
 
 
 def _cli(*args):
@@ -333,7 +330,6 @@ def test_impact_contact_trace(impact):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not RIGID, reason="rigid_body is not registered in rockjax.MODELS")
 def test_rigid_body_fits(continuous):
     """rigid_body on its own trace: right and quiet; on the 2-DOF trace: flagged, naming
     the 2-DOF body as the next model up."""

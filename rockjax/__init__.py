@@ -6,11 +6,20 @@ Foundations": the SDOF equation of motion (Eq. 1), its closed-form restoring for
 
 rockjax enables JAX's 64-bit mode on import (float64 is the default dtype of every result);
 pass float32 arrays explicitly, e.g. ``structure.astype(jnp.float32)``, for the fast mode.
+
+On import it also asks JAX for one CPU device per core (``jax_num_cpu_devices``) when the
+backend is not yet initialised and the user has not chosen a count (``XLA_FLAGS``,
+``JAX_NUM_CPU_DEVICES``, ``ROCKJAX_CPU_DEVICES``), so that `simulate_batch` uses every core.
 """
 
 import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
+
+from ._devices import use_all_cores as _use_all_cores  # noqa: E402
+
+# one CPU device per core, so that batches use every core (see rockjax/_devices.py)
+_use_all_cores()
 
 from . import datasets as datasets, integrators as integrators, models as models  # noqa: E402
 from ._batch import (  # noqa: E402

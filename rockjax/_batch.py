@@ -457,8 +457,9 @@ def simulate_batch(
       padded, so every chunk reuses one compilation. Default: 8192 summaries, or as many
       full responses as fit in about 256 MB.
     - `devices`: how many local devices to split each chunk over (default: all of
-      `jax.local_devices()`; on a CPU set
-      `XLA_FLAGS=--xla_force_host_platform_device_count=<cores>` before importing jax).
+      `jax.local_devices()`; on a CPU `import rockjax` makes one device per core, unless
+      `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or JAX
+      ran before it: docs/batches.md).
     - `fidelity_warning`: as `rockjax.simulate` (one warning for the batch, counting the
       runs that lift off by more than 3 u_crit under the paper's SDOF models).
     - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and

@@ -56,9 +56,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import optimistix as optx
 
-from .._pushover import lift_off_rotation
 from ._base import AbstractRockingModel, Flags, Observed
 
 CONTACTS = ("impact", "continuous")
@@ -376,31 +374,56 @@ def static_state(s, a):
     x_e(theta) = a (the pushover kinematics: centre held before lift-off, corner after).
     Returns (q, P, pivot, X).
     """
-    theta_u = lift_off_rotation(s)
-    X_r = s.B * jnp.cos(theta_u)  # the right corner's x once it is the pivot
-
-    def pieces(theta):
+    def pieces(s, theta):
+        theta_u = jnp.arcsin(s.delta_0 / s.B)  # the left spring unloads (exact, Eq. 5)
         lifted = theta > theta_u
-        return jnp.where(lifted, 1.0, 0.0), jnp.where(lifted, X_r, 0.0)
+        # the right corner's x once it is the pivot
+        return jnp.where(lifted, 1.0, 0.0), jnp.where(lifted, s.B * jnp.cos(theta_u), 0.0)
 
-    def V(y_o, theta):
-        return potential(s, coords(s, y_o, theta))
-
-    def fn(z, _):
+    def fn(z, args):
+        s, a = args
         y_o, theta, P = z[0] * s.B, z[1], z[2] * s.W
-        pivot, X = pieces(theta)
-        dVy, dVt = jax.grad(V, argnums=(0, 1))(y_o, theta)
+        pivot, X = pieces(s, theta)
+        dVy, dVt = jax.grad(lambda y, t: potential(s, coords(s, y, t)), argnums=(0, 1))(
+            y_o, theta)
         dxe = pivot * s.B * jnp.sin(theta) + s.H_e * jnp.cos(theta)
         xe = x_base(s, theta, pivot, X) + s.H_e * jnp.sin(theta)
         return jnp.stack([dVy / s.W, (dVt - P * dxe) / (s.W * s.B), (xe - a) / s.H_e])
 
     z0 = jnp.stack([-s.delta_0 / s.B, jnp.arcsin(jnp.clip(a / s.R_e, 0.0, 1.0)),
                     jnp.zeros_like(a)])
-    sol = optx.root_find(fn, optx.Newton(rtol=1e-13, atol=1e-13), z0, max_steps=64,
-                         throw=False)
-    z = sol.value
-    pivot, X = pieces(z[1])
+    z = _newton(fn, z0, (s, a))
+    pivot, X = pieces(s, z[1])
     return coords(s, z[0] * s.B, z[1]), z[2] * s.W, pivot, X
+
+
+def _newton(fn, z0, args, max_steps=64, tol=1e-13):
+    r"""The root of `fn(z, args)` by Newton's method from `z0`, with the derivative of the
+    implicit function theorem.
+
+    Written out rather than `optimistix.root_find`, whose closure conversion fails inside
+    `jax.shard_map` (a batch split over devices). The iteration runs on stopped values (no
+    derivatives); one last Newton step from its result carries them: at the root its
+    derivative is $-J^{-1}\,\partial f/\partial p$, the implicit one, in forward and reverse
+    mode.
+    """
+    stopped = jax.tree_util.tree_map(jax.lax.stop_gradient, args)
+
+    def step(z, p):
+        return z - jnp.linalg.solve(jax.jacfwd(fn)(z, p), fn(z, p))
+
+    def cond(c):
+        z, dz, k = c
+        return (k < max_steps) & (jnp.max(jnp.abs(dz) - tol * (1 + jnp.abs(z))) > 0)
+
+    def body(c):
+        z, _, k = c
+        z1 = step(z, stopped)
+        return z1, z1 - z, k + 1
+
+    init = (jax.lax.stop_gradient(z0), jnp.full_like(z0, jnp.inf), 0)
+    zs, _, _ = jax.lax.while_loop(cond, body, init)
+    return step(zs, args)
 
 
 def static_pushover(structure, u):

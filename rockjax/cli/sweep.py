@@ -7,6 +7,10 @@ CSV, then plot and report.
 Records may differ in time step and length: they run together on their common time step
 (each resampled exactly), and each run ends at its own record's end plus `--tail`. The
 units of each record come from its file, or from `FILE:UNITS` / a `--units` after it.
+
+With `--distributed` or `--coordinator/--num-processes/--process-id` the sweep runs as
+several `jax.distributed` processes (`_distributed`): each runs a contiguous block of the
+runs, process 0 gathers them and writes the same outputs as one process would.
 """
 
 from __future__ import annotations
@@ -19,7 +23,9 @@ import math
 import pathlib
 import sys
 import time
+import zlib
 
+import jax
 import numpy as np
 
 import rockjax
@@ -27,6 +33,7 @@ from rockjax import _plotting
 from rockjax._batch import DEFAULT_TAIL
 from rockjax._records import common_time_step, record_format
 
+from . import _distributed
 from ._common import (
     _check_out_dir,
     _check_png,
@@ -89,12 +96,15 @@ def add_parser(subparsers):
         "units and where they came from, dt, points, duration, PGA; model, impact rule, r, "
         "method). Records (PEER AT2, two columns t a, or one column with --record-dt) may "
         "differ in time step and length: they run on their common step, each resampled "
-        "exactly, and each run ends at its own record's end plus --tail.",
+        "exactly, and each run ends at its own record's end plus --tail. With --distributed "
+        "(or --coordinator, --num-processes, --process-id) the runs are split over several "
+        "jax.distributed processes or machines and process 0 writes the outputs.",
     )
     w.set_defaults(inputs=None)
     _add_input_arguments(w)
     _add_run_arguments(w)
     _add_output_arguments(w)
+    _distributed.add_distributed_arguments(w)
     w.set_defaults(func=run)
     return w
 
@@ -371,6 +381,7 @@ class _Sweep:
     tail: float
     t1: float | None
     skipped: dict = dataclasses.field(default_factory=dict)
+    processes: int = 1
     results: list[dict] = dataclasses.field(default_factory=list)
     warnings: list[str] = dataclasses.field(default_factory=list)
     wall: float = 0.0
@@ -431,35 +442,80 @@ def _check_run_length(sweep):
         )
 
 
-def _run_batches(args, sweep):
-    """One `simulate_batch` per structure over every (scale, record); fills sweep.results."""
-    n_s, n_r = len(sweep.scales), len(sweep.rec_labels)
-    scale_b = np.repeat(sweep.scales, n_r)  # scale-major: run k is scale k // n_r, record k % n_r
-    record_b = np.tile(np.arange(n_r), n_s)
-    t0 = time.perf_counter()
+def _fingerprint(sweep):
+    """A checksum of what was read (labels, scales, records, structures): processes that
+    read different files disagree on it."""
+    h = zlib.crc32(json.dumps([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
+                               sweep.tail, sweep.t1]).encode())
+    for rec in sweep.records:
+        h = zlib.crc32(np.ascontiguousarray(rec.accel, float).tobytes(), h)
+        h = zlib.crc32(repr(float(rec.dt)).encode(), h)
     for s in sweep.structures:
-        out = rockjax.simulate_batch(
+        for leaf in jax.tree_util.tree_leaves(s):
+            try:
+                data = np.ascontiguousarray(leaf, float).tobytes()
+            except (TypeError, ValueError):
+                data = repr(leaf).encode()
+            h = zlib.crc32(data, h)
+    return h
+
+
+def _run_block(args, sweep, lo, hi, out, quiet):
+    """Runs lo..hi-1 of the sweep (run k: structure k // (n_scales n_records), then scale,
+    then record) into out[field, k - lo]: one `simulate_batch` per structure touched."""
+    n_r = len(sweep.rec_labels)
+    m = len(sweep.scales) * n_r
+    for i, s in enumerate(sweep.structures):
+        a, b = max(lo, i * m), min(hi, (i + 1) * m)
+        if a >= b:
+            continue
+        k = np.arange(a, b) - i * m  # scale-major: scale k // n_r, record k % n_r
+        res = rockjax.simulate_batch(
             s,
             sweep.records,
             sweep.t1,
             tail=sweep.tail,
-            scale=scale_b,
-            record=record_b,
+            scale=sweep.scales[k // n_r],
+            record=k % n_r,
             r=args.r,
             model=args.model,
             impact=args.impact,
             method=args.method,
             substeps=args.substeps,
             summary_only=True,
-            progress=False if args.json else None,
+            progress=False if quiet else None,
             fidelity_warning=False,
         )
-        sweep.results.append({k: np.asarray(getattr(out, k)).reshape(n_s, n_r) for k in _FIELDS})
-        note = fidelity_note(args, s, True, out.peak_u)
+        for f, name in enumerate(_FIELDS):
+            out[f, a - lo : b - lo] = np.asarray(getattr(res, name))
+
+
+def _run_batches(args, sweep, cluster):
+    """This process's block of the runs, gathered from every process (one process: all of
+    them); fills sweep.results and sweep.warnings."""
+    n_s, n_r = len(sweep.scales), len(sweep.rec_labels)
+    n = len(sweep.structures) * n_s * n_r
+    lo, hi = cluster.block(n)
+    part, error = np.zeros((1 + len(_FIELDS), hi - lo)), None  # row 0: failed
+    t0 = time.perf_counter()
+    try:
+        _run_block(args, sweep, lo, hi, part[1:], quiet=args.json or cluster.index > 0)
+    except Exception as e:  # noqa: BLE001 - raised again by gather, after the others know
+        part[0], error = 1, e
+    full = cluster.gather(part, n, error)
+    sweep.wall = time.perf_counter() - t0
+    sweep.processes = cluster.count
+    m = n_s * n_r
+    for i, s in enumerate(sweep.structures):
+        res = {k: full[1 + f, i * m : (i + 1) * m].reshape(n_s, n_r) for f, k in enumerate(_FIELDS)}
+        for k in ("n_impacts", "status"):
+            res[k] = res[k].astype(np.int64)
+        sweep.results.append(res)
+        note = fidelity_note(args, s, True, res["peak_u"].ravel())
         if note and note not in sweep.warnings:
             sweep.warnings.append(note)
-            print(f"warning: {note}", file=sys.stderr)
-    sweep.wall = time.perf_counter() - t0
+            if cluster.index == 0:
+                print(f"warning: {note}", file=sys.stderr)
 
 
 def _csv_rows(args, sweep):
@@ -608,6 +664,7 @@ def _print_json(args, sweep, counts, fractions):
         "status_counts": counts,
         "wall_time_s": wall,
         "runs_per_s": n_runs / wall if wall > 0 else None,
+        "processes": sweep.processes,
         "tail_s": sweep.tail,
         "t1": sweep.t1,
         "grid_dt_s": sweep.grid_dt,
@@ -663,8 +720,10 @@ def _print_report(args, sweep, counts, fractions):
         f"sweep         {sweep.runs}: {len(sweep.structures)} structure(s) x {n_r} record(s) x "
         f"{n_s} scale(s)"
     )
+    procs = f", {sweep.processes} processes" if sweep.processes > 1 else ""
     print(
-        f"time          {sweep.wall:.3g} s ({n_runs / sweep.wall:.3g} runs/s, compilation included)"
+        f"time          {sweep.wall:.3g} s ({n_runs / sweep.wall:.3g} runs/s, compilation "
+        f"included{procs})"
     )
     print("status        " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
     print(f"overturned    {n_over} of {n_runs} ({n_over / n_runs:.1%})")
@@ -693,9 +752,8 @@ def _print_fraction_table(scales, struct_labels, fractions):
         )
 
 
-def run(args):
-    """structures x scales x records through `simulate_batch(summary_only=True)`: CSV, plot."""
-    _check_args(args)
+def _read_sweep(args):
+    """The sweep's inputs, read and checked (no run yet)."""
     structures, struct_labels = _sweep_structures(args.structure)
     records, rec_labels, skipped = _sweep_records(args)
     sweep = _Sweep(
@@ -709,7 +767,32 @@ def run(args):
         skipped=skipped,
     )
     _check_run_length(sweep)
-    _run_batches(args, sweep)
+    return sweep
+
+
+def _load_sweep(args, cluster):
+    """`_read_sweep`, and (several processes) a check that every process read the same."""
+    sweep = error = None
+    try:
+        sweep = _read_sweep(args)
+    except Exception as e:  # noqa: BLE001 - raised again by agree, after the others know
+        error = e
+    cluster.agree(_fingerprint(sweep) if cluster.active and sweep is not None else None, error)
+    return sweep
+
+
+def run(args):
+    """structures x scales x records through `simulate_batch(summary_only=True)`: CSV, plot;
+    over several jax.distributed processes when asked (process 0 writes)."""
+    _check_args(args)
+    cluster = _distributed.start(args)
+    try:
+        sweep = _load_sweep(args, cluster)
+        _run_batches(args, sweep, cluster)
+    finally:
+        cluster.stop()
+    if cluster.index != 0:
+        return 0
     _write_sweep_csv(args, sweep)
     counts, fractions = sweep.status_counts(), sweep.fractions_overturned()
     if args.plot:
@@ -717,8 +800,8 @@ def run(args):
         fig = plot_sweep(
             sweep.scales,
             sweep.results,
-            u_overturn=[float(s.u_overturn) for s in structures],
-            structures=struct_labels,
+            u_overturn=[float(s.u_overturn) for s in sweep.structures],
+            structures=sweep.struct_labels,
             records=sweep.rec_labels,
             title=f"{sweep.runs}, each record to {end}, {args.model} model, "
             f"impact rule {args.impact}, {args.method}",

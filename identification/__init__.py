@@ -6,11 +6,11 @@ it with `fit_decay` (k_f, r, and the release displacement u0 and time t0, found 
 trace by `detect_release`; with any model of rockjax's ladder, the 2-DOF body's dashpots
 c_f included, and a lack-of-fit check of the residuals; docs/identification.md); the
 synthetic traces in `data/` (`synthetic_trace_path`, `synthetic_truth`) are labelled
-synthetic everywhere.
+synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits several traces
+of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
 """
 
 from ._fit import (
-    fit_decay as fit_decay,
     FitResult as FitResult,
     IdentifiabilityWarning as IdentifiabilityWarning,
     LackOfFitWarning as LackOfFitWarning,
@@ -18,6 +18,7 @@ from ._fit import (
     PARAM_NAMES as PARAM_NAMES,
     UNITS as UNITS,
 )
+from ._joint import fit_decay as fit_decay, JointFitResult as JointFitResult
 from ._lack import residual_statistics as residual_statistics
 from ._models import (
     CONTACTS as CONTACTS,

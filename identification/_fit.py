@@ -24,12 +24,18 @@ only if the residuals are noise, which the lack-of-fit check (`identification._l
 tests.
 
 The compiled optimiser step takes the trace and the fixed values as arguments: a second fit
-of a trace of the same length, with the same parameters and settings, reuses it.
+of a trace of the same length, with the same parameters and settings, reuses it (it traces
+and compiles nothing). With JAX's persistent compilation cache on (as `rockjax fit` has
+it), the traced programs are kept on disk too (`identification._aot`), so that a new
+process neither traces nor compiles them. Each stage of the growing horizon simulates only
+as far as the last sample it fits.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import functools
 import math
 import sys
 import time
@@ -43,7 +49,7 @@ import optax
 
 import rockjax
 
-from . import _lack, _models
+from . import _aot, _lack, _models
 from ._models import FitModel
 from ._optim import levenberg_marquardt
 from ._trace import DecayTrace, detect_release, Release, TraceError
@@ -54,7 +60,10 @@ model, are fitted by default; see `identification.default_params`)."""
 UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
 """The (SI) unit of each parameter."""
 _T_SCALE = 0.01  # s, unit of t0 in the unconstrained coordinates
+_WARN_LEVEL = 3  # warnings point at the caller of identification.fit_decay (a wrapper)
 _LM = levenberg_marquardt()  # the default optimiser: one instance, so compiled code is reused
+_aot.name_static(_LM.init, "identification.levenberg_marquardt().init")
+_aot.name_static(_LM.update, "identification.levenberg_marquardt().update")
 
 
 class IdentifiabilityWarning(UserWarning):
@@ -288,32 +297,38 @@ def fit_decay(
     fit.values["k_f"], fit.stderr["k_f"], fit.lack_of_fit["fires"]
     ```
     """
-    problem = _setup(trace, structure, params, model=model, impact=impact, contact=contact,
-                     initial=initial, starts=starts, max_iter=max_iter, horizons=horizons,
-                     tol=tol, uplift_weight=uplift_weight, rtol=rtol, atol=atol,
-                     progress=progress)
+    setup = dict(model=model, impact=impact, contact=contact, initial=initial, starts=starts,
+                 max_iter=max_iter, horizons=horizons, tol=tol, uplift_weight=uplift_weight,
+                 rtol=rtol, atol=atol, progress=progress)
+    problem = _setup(trace, structure, params, **setup)
     transform = _Transform(problem.params, problem.values0, problem.k_min, problem.scale,
                            problem.t_ref, _models.start_offsets(problem.fit_model),
                            problem.k_cap)
     model = _Model.build(problem)
-    opt = _LM if optimizer is None else optax.with_extra_args_support(optimizer)
+    opt = _optimizer(optimizer)
     run = _run_stages(problem, model, opt, transform.starting_points(problem.starts),
                       lm=optimizer is None)
     best = _best_start(problem, model, opt, run)
     unc = _uncertainty(problem, model, transform, best, run.keep)
     ident, messages = _identifiability(problem, best, unc)
     for m in messages:
-        warnings.warn(m, IdentifiabilityWarning, stacklevel=2)
+        warnings.warn(m, IdentifiabilityWarning, stacklevel=_WARN_LEVEL)
     response = _respond(model, jnp.asarray(best.z))
     msg = _outlier_message(problem, np.asarray(response.u), run.keep, unc.sigma)
     if msg is not None:
         messages.append(msg)
-        warnings.warn(msg, OutlierWarning, stacklevel=2)
+        warnings.warn(msg, OutlierWarning, stacklevel=_WARN_LEVEL)
     lack = _lack_of_fit(problem, np.asarray(response.u), run.keep)
     if lack["fires"]:
         messages.append(lack["message"])
-        warnings.warn(lack["message"], LackOfFitWarning, stacklevel=2)
+        warnings.warn(lack["message"], LackOfFitWarning, stacklevel=_WARN_LEVEL)
     return _result(problem, run, best, unc, ident, messages, response, lack)
+
+
+def _optimizer(optimizer):
+    """The optax optimiser of a fit: the one default instance (its compiled code is
+    reused by every fit), or `optimizer` with extra-args support."""
+    return _LM if optimizer is None else optax.with_extra_args_support(optimizer)
 
 
 def _lack_of_fit(problem: _Problem, u_fit: np.ndarray, keep: np.ndarray) -> dict:
@@ -367,6 +382,10 @@ class _Problem:
     def fits_uplift(self) -> bool:
         """Whether the uplift channel is in the residuals."""
         return self.up_meas is not None and self.uplift_weight > 0
+
+    def samples(self) -> np.ndarray:
+        """The samples that may be fitted (all of them; boolean)."""
+        return np.ones(self.t.size, bool)
 
     def within(self, frac: float) -> np.ndarray:
         """The samples up to the first `frac` of the motion after the release (boolean):
@@ -604,6 +623,28 @@ class _Transform:
             "c_f": math.log(v["c_f"]) if v["c_f"] > 0 else -math.inf,  # fitted: > 0
         }
 
+    def decode(self, z) -> dict:
+        """The optimiser's coordinates of the fitted parameters -> natural values of all
+        the parameters (floats; the inverse of `encode`, as `_Model.decode`)."""
+        out = {k: float(v) for k, v in self.values0.items()}
+        for p, zi in zip(self.params, (float(x) for x in z)):
+            if p == "k_f":
+                y = zi
+                if self.k_cap is not None:
+                    span = math.log(self.k_cap - self.k_min)
+                    x = span - zi
+                    y = span - (max(x, 0.0) + math.log1p(math.exp(-abs(x))))
+                out["k_f"] = self.k_min + math.exp(y)
+            elif p == "r":
+                out["r"] = 1.0 / (1.0 + math.exp(-zi))
+            elif p == "u0":
+                out["u0"] = zi * self.scale
+            elif p == "c_f":
+                out["c_f"] = math.exp(zi)
+            else:
+                out["t0"] = self.t_ref + zi * _T_SCALE
+        return out
+
     def derivatives(self, z) -> list:
         """d(natural value)/dz of each fitted parameter at the point `z` (floats)."""
         out = []
@@ -660,6 +701,7 @@ class _Model(eqx.Module):
     scale: jax.Array
     t_ref: jax.Array
     eps: jax.Array  # spacing of the model times of the samples before the release [s]
+    eps_end: jax.Array  # spacing of the model times of the samples after t_end [s]
     k_span: jax.Array | None  # log(k_cap - k_min): the bound of k_f, None: unbounded
     uplift_weight: jax.Array
     model: object  # the model instance (its dashpot coefficient an array, set from c_f)
@@ -680,6 +722,7 @@ class _Model(eqx.Module):
             k_min=arr(pb.k_min), scale=arr(pb.scale), t_ref=arr(pb.t_ref),
             k_span=None if pb.k_cap is None else arr(math.log(pb.k_cap - pb.k_min)),
             eps=arr(1e-9 * float(np.median(np.diff(pb.t))) / n),
+            eps_end=arr(1e-9 * float(np.median(np.diff(pb.t)))),
             uplift_weight=arr(float(pb.uplift_weight)), model=_model_instance(pb),
             params=pb.params, dashpots=pb.fit_model.has_dashpots, impact=pb.impact,
             rtol=float(pb.rtol), atol=float(pb.atol),
@@ -702,20 +745,26 @@ class _Model(eqx.Module):
                 out["t0"] = self.t_ref + zi * _T_SCALE
         return out
 
-    def respond(self, z):
+    def respond(self, z, t_end=None):
         """The model on the trace times: held at u0 before the release at t0, then
         `rockjax.simulate` of the release at rest (model time t - t0).
 
         The samples before the release get model times 0, eps, 2 eps, ... (eps ~ 1e-9 of
         a step / n: strictly increasing, as `simulate` needs, and as good as 0: the state
-        there is the release state to ~1e-20 m), which do not depend on t0.
+        there is the release state to ~1e-20 m), which do not depend on t0. `t_end`
+        (trace time [s], traced): the simulation stops there, the samples after it get
+        the state at t_end (+ n eps_end, eps_end ~ 1e-9 of a step): the residuals of a
+        short horizon cost a short simulation.
         """
         v = self.decode(z)
         s = self.structure.replace(k_f=v["k_f"])
         model = self.model
         if self.dashpots:
             model = eqx.tree_at(lambda m: m.damping, model, v["c_f"])
-        ts = jnp.maximum(self.t - v["t0"], self.eps * jnp.arange(self.t.shape[0]))
+        k = jnp.arange(self.t.shape[0])
+        ts = jnp.maximum(self.t - v["t0"], self.eps * k)
+        if t_end is not None:
+            ts = jnp.minimum(ts, jnp.maximum(t_end - v["t0"], 0.0) + self.eps_end * k)
         return rockjax.simulate(
             s, rockjax.FreeVibration(v["u0"]), ts[-1], ts=ts, r=v["r"], model=model,
             impact=self.impact, rtol=self.rtol, atol=self.atol, adjoint="forward",
@@ -723,7 +772,8 @@ class _Model(eqx.Module):
 
     def residuals(self, z, mask):
         """Masked residuals (displacement, then weighted uplift) in units of `scale`."""
-        res = self.respond(z)
+        # the simulation ends at the last sample in the fit (a horizon, padding)
+        res = self.respond(z, jnp.max(jnp.where(mask > 0, self.t, self.t[0])))
         parts = [mask * (res.u - self.u) / self.scale]
         if self.up is not None:
             parts.append(mask * self.uplift_weight * (res.uplift - self.up) / self.scale)
@@ -733,8 +783,10 @@ class _Model(eqx.Module):
         return jnp.where(bad, 1e3, r)
 
     def res_jac(self, z, mask):
-        """The residuals and their Jacobian d r / d z (forward mode)."""
-        return self.residuals(z, mask), jax.jacfwd(self.residuals)(z, mask)
+        """The residuals and their Jacobian d r / d z (forward mode; one trace of the
+        model: the residuals are the primal of the Jacobian's pushforward)."""
+        J, r = jax.jacfwd(lambda x: (self.residuals(x, mask),) * 2, has_aux=True)(z)
+        return r, J
 
 
 def _k_f_of_z(z, span):
@@ -753,7 +805,51 @@ def _model_instance(pb: _Problem):
     return model
 
 
-@eqx.filter_jit
+@contextlib.contextmanager
+def _checks_as_nan():
+    """Trace equinox's runtime checks (`eqx.error_if`, used by diffrax) in their "nan"
+    mode: a failed check makes the simulation NaN (a bad point of the fit: large
+    residuals) instead of raising through a host callback. A program with host callbacks
+    is never written to JAX's persistent compilation cache, so without this every new
+    process (`rockjax fit`) compiles the fit again. Affects only what is traced inside."""
+    errors = sys.modules.get("equinox._errors")
+    old = getattr(errors, "EQX_ON_ERROR", None)
+    if old is None:  # another equinox: leave it as it is
+        yield
+        return
+    errors.EQX_ON_ERROR = "nan"
+    try:
+        yield
+    finally:
+        errors.EQX_ON_ERROR = old
+
+
+def _compiled(out_structure):
+    """Decorator: `eqx.filter_jit(fn)`, traced with `_checks_as_nan` (see there); its
+    programs are kept on disk when JAX's persistent compilation cache is on
+    (`_aot.persisted`; `out_structure(*args)`: the pytree structure of its output)."""
+
+    def wrap(fn):
+        jitted = _aot.persisted(fn, out_structure)
+
+        @functools.wraps(fn)
+        def call(*args):
+            with _checks_as_nan():
+                return jitted(*args)
+
+        return call
+
+    return wrap
+
+
+@functools.cache
+def response_structure():
+    """The pytree structure of a `rockjax.Response` (of one run, or of several)."""
+    names = [f.name for f in dataclasses.fields(rockjax.Response)]
+    return jax.tree.structure(rockjax.Response(**dict.fromkeys(names, 0.0)))
+
+
+@_compiled(lambda model, z: response_structure())
 def _respond(model: _Model, z):
     """`model.respond(z)`, compiled."""
     return model.respond(z)
@@ -767,12 +863,13 @@ def _channels(pb: _Problem, response) -> list:
     return out
 
 
-@eqx.filter_jit
+@_compiled(lambda model, opt, z, opt_state, mask, free:
+           jax.tree.structure((z, opt_state, 0, 0, 0)))
 def _run_chunk(model: _Model, opt, z, opt_state, mask, free):
     """`_CHUNK` optimiser steps of every start (vmap over the first axis), compiled.
 
     Returns the new points and states, the loss at each step (starts, _CHUNK), and the
-    residuals and Jacobian at the first step.
+    residuals and Jacobian at each step (starts, _CHUNK, ...).
     """
 
     def one(z, opt_state):
@@ -787,9 +884,16 @@ def _run_chunk(model: _Model, opt, z, opt_state, mask, free):
 
         (z_new, st), (vals, rs, Js) = jax.lax.scan(step, (z, opt_state), None,
                                                     length=_CHUNK)
-        return z_new, st, vals, rs[0], Js[0]
+        return z_new, st, vals, rs, Js
 
     return jax.vmap(one)(z, opt_state)
+
+
+@eqx.filter_jit
+def _init_states(opt, z):
+    """The optimiser's state of every start (vmap over the first axis of z), compiled:
+    one small program instead of a compile per operation."""
+    return jax.vmap(opt.init)(z)
 
 
 # ----------------------------------------- multi-start run with growing horizon
@@ -837,6 +941,7 @@ class _Run:
     vals: np.ndarray | None = None  # losses of the last chunk (starts, _CHUNK)
     n_iter: int = 0
     n_refits: int = 0
+    tracked: dict | None = None  # the LM's best point of the last stage: loss, r, J, mask
 
     def best_params(self):
         return self.opt_state.best_params if self.lm else self.z
@@ -858,9 +963,11 @@ def _run_horizon(problem: _Problem, model: _Model, opt, run: _Run, stage: int, f
     stall = np.zeros(problem.starts, int)
     stage_iter = 0
     while stage_iter < problem.max_iter:
-        run.z, run.opt_state, vals, _, _ = _run_chunk(model, opt, run.z, run.opt_state, mask,
-                                                      free)
+        run.z, run.opt_state, vals, rs, Js = _run_chunk(model, opt, run.z, run.opt_state,
+                                                        mask, free)
         vals = np.asarray(vals)  # (starts, chunk)
+        if run.lm and frac == horizons[-1]:
+            _track_best(run, vals, rs, Js, np.asarray(mask) > 0, first=stage_iter == 0)
         run.vals = vals
         run.n_iter += _CHUNK
         stage_iter += _CHUNK
@@ -876,6 +983,25 @@ def _run_horizon(problem: _Problem, model: _Model, opt, run: _Run, stage: int, f
         progress.update(run.n_iter, frac, best_now)
         if np.all(run.converged):
             break
+
+
+def _track_best(run: _Run, vals, rs, Js, mask: np.ndarray, first: bool):
+    """Follow the Levenberg-Marquardt state's accepted point through a chunk (the same
+    test: a loss at or below the last accepted one, or the stage's first point), keeping
+    its residuals and Jacobian: `_best_start` needs them, and would otherwise evaluate
+    them again (a chunk)."""
+    t = run.tracked
+    if first or t is None:
+        t = run.tracked = {"value": np.full(vals.shape[0], np.inf), "r": None, "J": None,
+                           "started": np.zeros(vals.shape[0], bool), "mask": mask}
+    rs, Js = np.asarray(rs), np.asarray(Js)
+    if t["r"] is None:
+        t["r"], t["J"] = rs[:, 0].copy(), Js[:, 0].copy()
+    for c in range(vals.shape[1]):
+        acc = (vals[:, c] <= t["value"]) | ~t["started"]
+        t["value"] = np.where(acc, vals[:, c], t["value"])
+        t["r"][acc], t["J"][acc] = rs[acc, c], Js[acc, c]
+        t["started"][:] = True
 
 
 def _check_outliers(problem: _Problem, model: _Model, run: _Run) -> bool:
@@ -905,12 +1031,13 @@ def _check_outliers(problem: _Problem, model: _Model, run: _Run) -> bool:
     return True
 
 
-def _run_stages(problem: _Problem, model: _Model, opt, z_start, lm: bool) -> _Run:
-    """The multi-start fit: each horizon in turn, then refits of the whole trace without
-    its outliers (if any)."""
+def _run_stages(problem: _Problem, model: _Model, opt, z_start, lm: bool,
+                outliers: bool = True) -> _Run:
+    """The multi-start fit: each horizon in turn, then (`outliers`) refits of the whole
+    trace without its outliers (if any)."""
     z = jnp.asarray(z_start)
-    run = _Run(z=z, opt_state=jax.vmap(opt.init)(z), lm=lm,
-               keep=np.ones(problem.t.size, bool), converged=np.zeros(problem.starts, bool))
+    run = _Run(z=z, opt_state=_init_states(opt, z), lm=lm, keep=problem.samples(),
+               converged=np.zeros(problem.starts, bool))
     progress = _Progress(problem.progress, problem.max_iter * len(problem.horizons))
     # Growing horizon: fit the first quarter of the trace, then half, then all of it. Early
     # cycles fix r and the phase; later ones refine k_f. Masks keep every shape, so nothing
@@ -919,9 +1046,9 @@ def _run_stages(problem: _Problem, model: _Model, opt, z_start, lm: bool) -> _Ru
     for stage, frac in enumerate(plan):
         if stage > 0:
             run.z = run.best_params()
-            run.opt_state = jax.vmap(opt.init)(run.z)
+            run.opt_state = _init_states(opt, run.z)
         _run_horizon(problem, model, opt, run, stage, frac, progress)
-        if stage == len(plan) - 1 and _check_outliers(problem, model, run):
+        if stage == len(plan) - 1 and outliers and _check_outliers(problem, model, run):
             plan.append(problem.horizons[-1])
     progress.close()
     return run
@@ -941,12 +1068,19 @@ class _Best:
 
 
 def _best_start(problem: _Problem, model: _Model, opt, run: _Run) -> _Best:
-    # best point of every start, and r, J there (one more chunk evaluates them first)
+    # best point of every start, and r, J there: those the LM's last stage evaluated there
+    # (on the same samples), else one more chunk evaluates them
     z_best = run.best_params()
-    full = jnp.asarray(run.keep, dtype=float)  # outliers (if any) stay out
-    _, _, vals_b, r_b, J_b = _run_chunk(model, opt, z_best, jax.vmap(opt.init)(z_best), full,
-                                        jnp.ones(len(problem.params)))
-    final_losses = np.asarray(vals_b)[:, 0]
+    t = run.tracked
+    if (run.lm and t is not None and np.array_equal(t["mask"], run.keep)
+            and np.array_equal(t["value"], np.asarray(run.opt_state.best_value))):
+        final_losses, r_b, J_b = t["value"], t["r"], t["J"]
+    else:
+        full = jnp.asarray(run.keep, dtype=float)  # outliers (if any) stay out
+        _, _, vals_b, r_b, J_b = _run_chunk(model, opt, z_best, _init_states(opt, z_best),
+                                            full, jnp.ones(len(problem.params)))
+        final_losses = np.asarray(vals_b)[:, 0]
+        r_b, J_b = np.asarray(r_b)[:, 0], np.asarray(J_b)[:, 0]
     i_best = int(np.nanargmin(np.where(np.isfinite(final_losses), final_losses, np.inf)))
     return _Best(
         index=i_best,
@@ -993,7 +1127,7 @@ def _uncertainty(problem: _Problem, model: _Model, transform: _Transform, best: 
         sig2.append(s2)
         var[ch] = s2
     sigma2 = sig2[0]
-    vals_nat = {k: float(v) for k, v in model.decode(jnp.asarray(best.z)).items()}
+    vals_nat = transform.decode(best.z)
     dtheta_dz = transform.derivatives(best.z)
     D = np.diag(dtheta_dz)
     try:

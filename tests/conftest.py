@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
+import tempfile
 
 import jax
 import pytest
@@ -22,6 +24,18 @@ jax.config.update("jax_enable_x64", True)
 import rockjax  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
+
+# The command line keeps JAX's persistent compilation cache in ~/.cache/rockjax/jax. The
+# suite gives each worker a temporary folder of its own (inherited by the CLI subprocesses),
+# so that tests never write to the user's home and two workers never share an entry; a
+# test that checks the cache's location sets its own.
+_COMPILE_CACHE = tempfile.mkdtemp(
+    prefix=f"rockjax-compile-cache-{os.environ.get('PYTEST_XDIST_WORKER', 'main')}-")
+os.environ["ROCKJAX_COMPILE_CACHE"] = _COMPILE_CACHE
+
+
+def pytest_sessionfinish(session, exitstatus):
+    shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
 
 #: The tests' stand-in for El Centro 1940 NS (IELC180): `rockjax.datasets.
 #: synthetic_ground_motion` with El Centro's length, step and PGA (40 s, 0.01 s,

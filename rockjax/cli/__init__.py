@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 
 from . import demo, fit, pushover, simulate, sweep
-from ._common import _first_line, _Parser, CLIError, EXIT_USAGE
+from ._common import _first_line, _Parser, CLIError, enable_compile_cache, EXIT_USAGE
 
 #: the sub-commands, in the order `rockjax --help` lists them
 COMMANDS = (demo, pushover, simulate, fit, sweep)
@@ -38,6 +38,12 @@ def build_parser():
         "foundation (SI units throughout).",
     )
     p.add_argument("--version", action="version", version=_version())
+    p.add_argument(
+        "--no-compile-cache", dest="compile_cache", action="store_false",
+        help="do not use JAX's persistent compilation cache (default: on, in "
+        "$ROCKJAX_COMPILE_CACHE or ~/.cache/rockjax/jax; ROCKJAX_COMPILE_CACHE=off also "
+        "turns it off): a second run of a command skips most of its compile time",
+    )
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for command in COMMANDS:
         command.add_parser(sub)
@@ -50,6 +56,8 @@ def main(argv=None):
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_USAGE
+    # before any computation: a later run of the same programs reads them back compiled
+    enable_compile_cache(disabled=not args.compile_cache)
     try:
         return args.func(args)
     except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:

@@ -72,8 +72,10 @@ def add_parser(subparsers):
         "trace, the standard errors do not hold, and the next model up the ladder), and "
         "what was read. The 2-DOF body's fits take minutes.",
     )
-    f.add_argument("trace", metavar="TRACE.csv", help="decay trace (time, displacement, "
-                   "optional uplift)")
+    f.add_argument("trace", metavar="TRACE.csv", nargs="+",
+                   help="decay trace (time, displacement, optional uplift); several traces "
+                   "of one structure are fitted jointly: k_f and r (or c_f) shared, u0 and "
+                   "t0 of each trace")
     f.add_argument(
         "--structure",
         metavar="FILE.toml",
@@ -352,9 +354,9 @@ def _print_report(args, s, trace, fit, info, read_warnings):
         print(f"plot written to {args.plot}")
 
 
-def _read(args):
-    """The trace, and the messages of the warnings of reading it; TraceErrors in the command
-    line's terms."""
+def _read(args, path):
+    """The trace at `path`, and the messages of the warnings of reading it; TraceErrors in
+    the command line's terms."""
     import identification
 
     units = args.units or {}
@@ -366,7 +368,7 @@ def _read(args):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", identification.DroppedRowsWarning)
         try:
-            trace = identification.read_trace(args.trace, columns=args.columns,
+            trace = identification.read_trace(path, columns=args.columns,
                                               units=args.units, drop_nan=args.drop_nan)
         except identification.TraceError as e:
             raise CLIError(e.cli_message) from None
@@ -388,7 +390,9 @@ def run(args):
         raise CLIError(f"--r must lie strictly inside (0, 1) for a fit, got {args.r}")
     _check_model_options(args, identification)
     s = _load_structure(args.structure)
-    trace, read_warnings = _read(args)
+    if len(args.trace) > 1:
+        return _run_joint(args, s, params, identification)
+    trace, read_warnings = _read(args, args.trace[0])
     try:
         fit = _fit_trace(trace, s, params, model=args.model, impact=args.impact, r=args.r,
                          starts=args.starts, progress=False if args.json else None,
@@ -398,14 +402,14 @@ def run(args):
     info = _fit_model_info(args, s, fit)
     if args.plot:
         fig = plot_fit(
-            trace, fit, title=f"fit of {pathlib.Path(args.trace).name}, {model_line(info)}"
+            trace, fit, title=f"fit of {pathlib.Path(args.trace[0]).name}, {model_line(info)}"
         )
         fig.savefig(args.plot, dpi=150)
     if args.json:
         summary = fit.summary()
         summary["warnings"] = read_warnings + summary["warnings"]
         t0 = fit.values.get("t0", fit.fixed.get("t0"))
-        print(json.dumps({"file": str(args.trace), "model": info, "trace": trace.info(),
+        print(json.dumps({"file": str(args.trace[0]), "model": info, "trace": trace.info(),
                           **summary, "t0_used_s": t0}))
         return 0
     _print_report(args, s, trace, fit, info, read_warnings)
@@ -425,3 +429,94 @@ def _check_model_options(args, identification):
         raise CLIError("--r does not act with --contact continuous: the springs and dashpots "
                        "carry the impacts (c_f is fitted for the dissipation; --c-f sets its "
                        "start)")
+
+
+# ------------------------------------------------------------------ several traces
+
+
+def _run_joint(args, s, params, identification):
+    """`rockjax fit A.csv B.csv ...`: the joint fit (shared k_f, r or c_f; u0, t0 of each
+    trace)."""
+    traces, read_warnings = [], []
+    for path in args.trace:
+        trace, msgs = _read(args, path)
+        traces.append(trace)
+        read_warnings += [f"{path}: {m}" for m in msgs]
+    try:
+        fit = _fit_trace(traces, s, params, model=args.model, impact=args.impact, r=args.r,
+                         starts=args.starts, progress=False if args.json else None,
+                         contact=args.contact, c_f=args.c_f)
+    except identification.TraceError as e:
+        raise CLIError(e.cli_message) from None
+    info = _fit_model_info(args, s, fit)
+    if args.plot:
+        plot_joint(traces, fit, title=f"joint fit of {len(traces)} traces, "
+                   f"{model_line(info)}").savefig(args.plot, dpi=150)
+    if args.json:
+        summary = fit.summary()
+        summary["warnings"] = read_warnings + summary["warnings"]
+        for d, tr in zip(summary["traces"], traces):
+            d["trace"] = tr.info()
+        print(json.dumps({"files": [str(p) for p in args.trace], "model": info, **summary}))
+        return 0
+    _print_joint(args, s, traces, fit, info, read_warnings)
+    return 0
+
+
+def _print_joint(args, s, traces, fit, info, read_warnings):
+    for tr in traces:
+        lines = trace_lines(tr.info())
+        print(f"trace         {lines[0]}")
+        for line in lines[1:]:
+            print(f"              {line}")
+    print(f"model         {model_line(info)}; start k_f = {float(s.k_f):.6g} N/m; joint fit "
+          f"of {len(traces)} traces (shared: {', '.join(fit.names)})")
+    print()
+    print(_fit_value_table(fit))
+    print()
+    print(f"{'trace':<28}{'u0 [m]':>12}{'SE':>10}{'t0 [s]':>12}{'SE':>10}{'rms [m]':>11}"
+          "  lack of fit")
+    for d in fit.per_trace:
+        row = f"{pathlib.Path(d['source']).name[:27]:<28}"
+        for p in ("u0", "t0"):
+            if p in d["values"]:
+                row += f"{d['values'][p]:>12.6g}{d['stderr'][p]:>10.2g}"
+            else:
+                row += f"{d['fixed'][p]:>12.6g}{'held':>10}"
+        row += f"{d['rms']:>11.3g}  {'FIRES' if d['lack_of_fit']['fires'] else 'no'}"
+        print(row)
+    print()
+    for w in read_warnings:
+        print(f"warning: {w}")
+    for other in ("r", "c_f"):
+        if "k_f" in fit.names and other in fit.names:
+            rho = fit.correlation[fit.joint_names.index("k_f"), fit.joint_names.index(other)]
+            print(f"{f'corr(k_f, {other})':<13} {rho:+.4f}")
+    print(f"loss          {fit.loss:.6g}  (1/2 sum of squared residuals / scale^2)")
+    print(f"converged     {'yes' if fit.converged else 'NO'}  ({fit.n_iterations} iterations)")
+    for note in fit.notes:
+        print(f"note: {note}")
+    for w in fit.warnings:
+        print(f"warning: {w}")
+    if args.plot:
+        print(f"plot written to {args.plot}")
+
+
+def plot_joint(traces, fit, *, title=None):
+    """Measured and fitted displacement of each trace of a joint fit, one panel each.
+    Returns a matplotlib Figure (no pyplot)."""
+    fig = _plotting.new_figure(figsize=(9, 2.0 * len(traces) + 0.8))
+    axes = np.atleast_1d(fig.subplots(len(traces), 1, sharex=True))
+    for ax, tr, resp, d in zip(axes, traces, fit.responses, fit.per_trace):
+        ax.plot(tr.t, 1e3 * np.asarray(tr.u), ".", ms=2, color="0.45", label="measured")
+        ax.plot(tr.t, 1e3 * np.asarray(resp.u), color="C3", lw=1.1, label="fitted")
+        ax.set_ylabel("u [mm]")
+        ax.set_title(f"{pathlib.Path(d['source']).name}: rms residual "
+                     f"{1e3 * d['rms']:.3g} mm", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("time [s]")
+    vals = ", ".join(f"{p} = {fit.values[p]:.4g} ± {fit.stderr[p]:.2g}" for p in fit.names)
+    fig.suptitle((title + "\n" if title else "") + vals, fontsize=10)
+    fig.tight_layout()
+    return fig

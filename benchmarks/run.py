@@ -1,6 +1,6 @@
 """All of rockjax's speed and accuracy figures, measured side by side in one run.
 
-    python benchmarks/run.py [--record PATH] [--quick]
+    python benchmarks/run.py [--record PATH] [--quick] [--only yardstick]
 
 Writes benchmarks/results.md and benchmarks/pareto.png (and prints the tables):
 
@@ -12,36 +12,38 @@ Writes benchmarks/results.md and benchmarks/pareto.png (and prints the tables):
     against time per run, for several methods and settings, the models simplified / exact /
     smooth, and float32 against float64 (the Pareto plot);
 (d) the gradient cost of the identification loss (value_and_grad / value);
-(e) compile times and peak memory (each in a fresh process).
+(e) compile times and peak memory (each in a fresh process);
+(g) the compiled yardstick: rockjax's default batch against a hand-written numba peer of the
+    same algorithm (benchmarks/numba_peer.py; needs the `bench` extra, else skipped), 10,000
+    El Centro runs. `--only yardstick` runs just this section and keeps the others from
+    results.json.
 
-All on the CPU. JAX sees one device per core (XLA_FLAGS=--xla_force_host_platform_device_count
-is set to the core count unless XLA_FLAGS is already set), and batches are split over them.
+All on the CPU, as a user runs it: `import rockjax` gives JAX one CPU device per core (unless
+XLA_FLAGS, JAX_NUM_CPU_DEVICES or ROCKJAX_CPU_DEVICES say otherwise), and batches are split
+over them.
 The tight references: scipy DOP853 at rtol 1e-12 (simplified model) and rockjax "diffrax" at
 rtol 1e-12 (exact and smooth models, which the scipy reference does not implement).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import pathlib
+import platform
+import statistics
+import subprocess
+import sys
+import time
 
-if "XLA_FLAGS" not in os.environ:
-    os.environ["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={os.cpu_count() or 1}"
-
-import argparse  # noqa: E402
-import json  # noqa: E402
-import pathlib  # noqa: E402
-import platform  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
+import jax
+import jax.numpy as jnp
+import numpy as np
 from single_run import _load_reference  # noqa: E402  (benchmarks/ is the script's dir)
 
-import rockjax  # noqa: E402
+import rockjax
+from rockjax._status import STATUS_NAMES
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 HERE = pathlib.Path(__file__).resolve().parent
@@ -294,6 +296,112 @@ def memory(record):
     return rows
 
 
+def yardstick(s, gm, n=10_000, repeats=3):
+    """(g): rockjax's default batch against a hand-written numba peer of the same algorithm
+    (benchmarks/numba_peer.py), side by side in this process on the same inputs: n El Centro
+    runs (scales 0.25-1.5, 40 s, summaries), numba on all threads and on one, rockjax on all
+    devices and on one. Each variant is compiled first, then the variants run interleaved,
+    `repeats` rounds, and the best round counts (the machine is shared). None if numba is
+    not installed."""
+    import warnings
+
+    try:
+        import numba
+        import numba_peer
+    except ImportError as e:
+        print(f"  numba is not installed ({e}): the yardstick is skipped "
+              "(pip install -e '.[bench]')", flush=True)
+        return None
+    scales = np.linspace(0.25, 1.5, n)
+    inp = numba_peer.peer_inputs(s, gm, T1)
+    n_thr, n_dev = numba.config.NUMBA_NUM_THREADS, len(jax.local_devices())
+
+    def rockjax_batch(devices):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rockjax.FidelityWarning)
+            out = rockjax.simulate_batch(s, gm, T1, scale=scales, summary_only=True,
+                                         devices=devices, progress=False)
+        return jax.block_until_ready(out)
+
+    variants = {
+        f"numba, {n_thr} threads": lambda: numba_peer.simulate_peer(**inp, scales=scales),
+        "numba, 1 thread": lambda: numba_peer.simulate_peer(**inp, scales=scales, threads=1),
+        f"rockjax, {n_dev} devices": lambda: rockjax_batch(None),
+        "rockjax, 1 device": lambda: rockjax_batch(1),
+    }
+    first, best, outs = {}, {k: np.inf for k in variants}, {}
+    cpu = dict(best)
+    for name, fn in variants.items():
+        t0 = time.perf_counter()
+        outs[name] = fn()
+        first[name] = time.perf_counter() - t0
+    for _ in range(repeats):
+        for name, fn in variants.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+            cpu[name] = min(cpu[name], time.process_time() - c0)
+    peer, rj = outs[f"numba, {n_thr} threads"], outs[f"rockjax, {n_dev} devices"]
+    pu = np.asarray(rj.peak_u)
+    rel = np.abs(peer["peak_u"] - pu) / pu
+    over = np.isfinite(np.asarray(rj.t_overturn)) & np.isfinite(peer["t_overturn"])
+    acc = dict(max_peak_rel=float(rel.max()), median_peak_rel=float(np.median(rel)),
+               status_mismatch=int(np.sum(np.asarray(rj.status) != peer["status"])),
+               impacts_mismatch=int(np.sum(np.asarray(rj.n_impacts) != peer["n_impacts"])),
+               max_t_overturn_diff=float(np.max(np.abs(np.asarray(rj.t_overturn)[over]
+                                                       - peer["t_overturn"][over]),
+                                                initial=0.0)),
+               statuses={str(k): int(v) for k, v in zip(*np.unique(np.asarray(rj.status),
+                                                                   return_counts=True))})
+    rows = [dict(name=k, per_run_ms=best[k] / n * 1e3, wall_s=best[k], first_s=first[k],
+                 cpu_per_run_ms=cpu[k] / n * 1e3) for k in variants]
+    for r in rows:
+        print(f"  {r['name']:22s} {r['per_run_ms']:.3f} ms/run, CPU {r['cpu_per_run_ms']:.3f} "
+              f"ms/run (best of {repeats}; first call {r['first_s']:.1f} s)", flush=True)
+    ratio = best[f"rockjax, {n_dev} devices"] / best[f"numba, {n_thr} threads"]
+    print(f"  rockjax / numba at all cores: {ratio:.2f}x; peak-u agreement max "
+          f"{acc['max_peak_rel']:.1e}, statuses differ {acc['status_mismatch']}, impact "
+          f"counts differ {acc['impacts_mismatch']}", flush=True)
+    return dict(n=n, repeats=repeats, threads=n_thr, devices=n_dev, rows=rows, ratio=ratio,
+                ratio_one=best["rockjax, 1 device"] / best["numba, 1 thread"], accuracy=acc,
+                date=time.strftime("%Y-%m-%d %H:%M"), numba=numba.__version__)
+
+
+def yardstick_markdown(y):
+    """The lines of section (g)."""
+    L = ["\n## (g) The compiled yardstick: rockjax against a numba peer\n"]
+    if y is None:
+        return L + ["numba is not installed (`pip install -e \".[bench]\"`): not measured.\n"]
+    L.append(f"{y['n']:,} El Centro runs (IELC180, scales 0.25-1.5, 40 s, summaries only, "
+             "Table 1 column, model simplified, impact rule paper), rockjax "
+             "`simulate_batch(..., summary_only=True)` with its default settings (rk4, "
+             "substeps 4) against `benchmarks/numba_peer.py`, the same algorithm written by "
+             "hand as a scalar loop per run with `numba.prange` over the runs (numba "
+             f"{y['numba']}). Measured {y['date']} by `python benchmarks/run.py --only "
+             f"yardstick`, all variants in one process on the same inputs, compiled first, "
+             f"then interleaved; the best of {y['repeats']} rounds (the machine is shared "
+             "with other jobs).\n")
+    L.append("| variant | per run [ms] | CPU time per run [ms] | wall [s] | first call [s] |")
+    L.append("|---|---|---|---|---|")
+    for r in y["rows"]:
+        L.append(f"| {r['name']} | {r['per_run_ms']:.3f} | {r['cpu_per_run_ms']:.3f} | "
+                 f"{r['wall_s']:.2f} | {r['first_s']:.1f} |")
+    L.append("\nCPU time is the process's, summed over its threads: the work done, less "
+             "sensitive than the wall time to other jobs on the machine.")
+    a = y["accuracy"]
+    L.append("")
+    L.append(f"rockjax / numba: **{y['ratio']:.2f}x** at all cores ({y['devices']} devices "
+             f"against {y['threads']} threads), {y['ratio_one']:.2f}x on one core. Agreement "
+             f"of the {y['n']:,} runs (rockjax on all devices against numba): peak |u| "
+             f"within {a['max_peak_rel']:.1e} relative (median {a['median_peak_rel']:.1e}); "
+             f"statuses differ in {a['status_mismatch']}, impact counts in "
+             f"{a['impacts_mismatch']} runs (statuses: "
+             + ", ".join(f"{STATUS_NAMES[int(k)]} {v:,}"
+                         for k, v in a["statuses"].items())
+             + f"); overturning times within {a['max_t_overturn_diff']:.1e} s.\n")
+    return L
+
+
 def pareto_plot(rows, path):
     from rockjax._plotting import new_figure
 
@@ -330,7 +438,8 @@ def fmt(x, spec):
     return format(x, spec) if np.isfinite(x) else "-"
 
 
-def write_markdown(path, info, single, models, batch, batch_acc, grads, mem, ref):
+def write_markdown(path, info, single, models, batch, batch_acc, grads, mem, ref,
+                   yard=None):
     L = []
     L.append("# rockjax benchmark results\n")
     L.append(f"Measured by `python benchmarks/run.py` on {info['date']}: {info['machine']}. "
@@ -436,6 +545,7 @@ def write_markdown(path, info, single, models, batch, batch_acc, grads, mem, ref
                  "`benchmarks/fidelity.md`); figure `fidelity.png`.\n")
         L.append("![fidelity](fidelity.png)\n")
         L.append(body.replace("\n## ", "\n### ").replace("\n# ", "\n### "))
+    L += yardstick_markdown(yard)
     path.write_text("\n".join(L) + "\n")
 
 
@@ -446,6 +556,10 @@ def main(argv=None):
                     help="El Centro IELC180 AT2 file (default: ../shared/data/ground_motions)")
     ap.add_argument("--quick", action="store_true", help="fewer settings (a smoke run)")
     ap.add_argument("--out", default=str(HERE), help="folder for results.md and pareto.png")
+    ap.add_argument("--only", choices=("yardstick",),
+                    help="run only this section; the others are kept from results.json")
+    ap.add_argument("--runs", type=int, default=10_000, help="runs of the yardstick (g)")
+    ap.add_argument("--repeats", type=int, default=3, help="timed rounds of the yardstick (g)")
     args = ap.parse_args(argv)
     record = pathlib.Path(args.record)
     if not record.is_file():
@@ -464,6 +578,8 @@ def main(argv=None):
         f"{rockjax.__version__}, float64 unless marked",
         devices=len(jax.devices()),
     )
+    if args.only == "yardstick":
+        return only_yardstick(out, s, gm, args)
     print("(a)/(c) single runs", flush=True)
     single, ref = single_runs(s, gm, ref_mod, dt, accel, args.quick)
     print("(c) other models", flush=True)
@@ -475,13 +591,34 @@ def main(argv=None):
     grads = gradient_cost()
     print("(e) memory", flush=True)
     mem = memory(record)
+    print("(g) the numba yardstick", flush=True)
+    yard = yardstick(s, gm, 1000 if args.quick else args.runs, args.repeats)
     pareto_plot(single + models, out / "pareto.png")
-    write_markdown(out / "results.md", info, single, models, batch, batch_acc, grads, mem, ref)
+    write_markdown(out / "results.md", info, single, models, batch, batch_acc, grads, mem, ref,
+                   yard)
     (out / "results.json").write_text(json.dumps(dict(info=info, single=single, models=models,
                                                       batch=batch, batch_accuracy=batch_acc,
-                                                      gradients=grads, memory=mem, reference=ref),
+                                                      gradients=grads, memory=mem, reference=ref,
+                                                      yardstick=yard),
                                                  indent=1))
     print(f"wrote {out / 'results.md'} and {out / 'pareto.png'}")
+
+
+def only_yardstick(out, s, gm, args):
+    """`--only yardstick`: measure (g), keep the other sections from results.json."""
+    print("(g) the numba yardstick", flush=True)
+    yard = yardstick(s, gm, args.runs, args.repeats)
+    path = out / "results.json"
+    if not path.is_file():
+        print(json.dumps(yard, indent=1))
+        print(f"no {path} to update: run benchmarks/run.py without --only first")
+        return
+    d = json.loads(path.read_text())
+    d["yardstick"] = yard
+    write_markdown(out / "results.md", d["info"], d["single"], d["models"], d["batch"],
+                   d["batch_accuracy"], d["gradients"], d["memory"], d["reference"], yard)
+    path.write_text(json.dumps(d, indent=1))
+    print(f"wrote {out / 'results.md'} and {path}")
 
 
 if __name__ == "__main__":

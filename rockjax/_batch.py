@@ -454,8 +454,8 @@ def simulate_batch(
       `housner` model, whose settling impacts crowd, 8 for the 2-DOF body; 4096 for
       dopri5).
     - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
-      padded, so every chunk reuses one compilation. Default: 8192 summaries, or as many
-      full responses as fit in about 256 MB.
+      padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
+      or as many full responses as fit in about 256 MB.
     - `devices`: how many local devices to split each chunk over (default: all of
       `jax.local_devices()`; on a CPU `import rockjax` makes one device per core, unless
       `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or JAX
@@ -576,16 +576,20 @@ def _devices(devices):
 
 
 def _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev):
-    """Runs per compiled call: 8192 summaries, or as many full responses as fit in about
-    256 MB; a multiple of the device count."""
+    """Runs per compiled call: at most 4096 summaries per device (the stepper's arrays of
+    a few thousand members stay in cache: measured faster per run than 5,000 or 10,000), or
+    as many full responses as fit in about 256 MB; the N runs split into equal chunks
+    (10,000 runs on 2 devices: two of 5,000, not 8,192 and a padded 8,192), a multiple of
+    the device count."""
     if chunk_size is None:
         if summary_only:
-            chunk_size = 8192
+            chunk_size = 4096 * n_dev
         else:
             chunk_size = max(1, min(8192, int(2**28 // (32 * (n_out + max_impacts)))))
     if not (isinstance(chunk_size, int) and chunk_size >= 1):
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    return n_dev * math.ceil(min(chunk_size, N) / n_dev)
+    equal = math.ceil(N / math.ceil(N / chunk_size))  # the fewest chunks, of equal size
+    return n_dev * math.ceil(equal / n_dev)
 
 
 def _config(model, method, free, n_steps, summary_only, max_impacts, max_pieces, substeps,

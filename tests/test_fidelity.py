@@ -10,11 +10,10 @@ import warnings
 import jax
 import numpy as np
 import pytest
+from conftest import run_cli
 
 import rockjax
 from rockjax import _fidelity
-
-from conftest import run_cli
 
 
 @pytest.fixture(scope="module")

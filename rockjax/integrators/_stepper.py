@@ -15,6 +15,12 @@ and the rest of the step continues in the new mode: the result converges at the 
 of the method although the forces have kinks and jumps. The peak $|u|$ between grid points
 comes from the Hermite interpolant of the observed $u$.
 
+With `rk4` a large batch (`COMPACT_MIN` members or more) pays for the events only where
+they happen: one trial step for the whole batch, and the few members with an event in it
+(about 2 % on an earthquake record) take the pieces in a gathered sub-batch
+(`_compacted`), instead of every piece running for the whole batch whenever one member
+needs it (measured in `benchmarks/run.py --only yardstick`).
+
 Reverse-mode differentiable with `rk4` (a fixed number of pieces per step, each skipped by
 `lax.cond` when no member needs it), forward mode (`jax.jacfwd`) with `dopri5`.
 """
@@ -239,9 +245,66 @@ def _finish(model, cfg, s, st, tau, L, a0, da):
     return st
 
 
-def substep(model, cfg, s, r, st, t_start, L, a0, a1):
+def _compact_width(n):
+    """Width of the sub-batch that takes the members with an event in a step of a batch of
+    n (more take several rounds); 0 for a small batch, where the whole batch takes the
+    pieces."""
+    return 0 if n < COMPACT_MIN else max(8, n // 32)
+
+
+#: the smallest batch whose members with events are compacted into a sub-batch
+COMPACT_MIN = 256
+
+
+def _take(x, idx, n):
+    """The members `idx` of a leaf with a leading batch axis of length n (others as is)."""
+    return jnp.take(x, idx, axis=0, mode="clip") if jnp.ndim(x) and x.shape[0] == n else x
+
+
+def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
+    """rk4 over one step: one trial step for the whole batch; the members it takes to the
+    end of the step without an event are done (the common case), the others (an event, a
+    non-finite state) take `substep`'s pieces in a sub-batch of just them, gathered and
+    scattered back. Same results as `substep` for the whole batch, at the cost of one
+    trial step plus the pieces of the few members that need them."""
+    n = a0.shape[0]
+    da = (a1 - a0) / L
+    tau = jnp.zeros_like(a0)
+    active = ~st.tally.done & (tau < L)
+    tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, L - tau, a0, da)
+    ok = jnp.all(jnp.isfinite(tr.y1), axis=-1)
+    easy = active & ok & ~jnp.any(fired(tr), axis=-1)
+    hard = active & ~easy
+    # the easy members: exactly a piece without an event (its peak, then the step's end)
+    obs0 = per_member(model.observe, s)(st.y, st.mode)
+    obs1 = per_member(model.observe, s)(tr.y1, st.mode)
+    u_ot = per_member(lambda s_, _: model.u_overturn(s_), s)(a0)
+    peak = piece_peak(obs0.u, obs0.v, obs1.u, obs1.v, L - tau)
+    up = per_member(model.tracked_uplift, s)(tr.y1, st.mode)
+    st = eqx.tree_at(lambda m: (m.y, m.tally), st,
+                     (jnp.where(easy[:, None], tr.y1, st.y),
+                      tree_where(easy, tally_peak(st.tally, peak, up, u_ot), st.tally)))
+
+    width = _compact_width(n)
+
+    def rounds(carry):  # up to `width` members with events at a time (usually one round)
+        st, todo = carry
+        idx = jnp.nonzero(todo, size=width, fill_value=n)[0]
+        s_, r_, st_, a0_, a1_, L_ = jax.tree_util.tree_map(lambda x: _take(x, idx, n),
+                                                           (s, r, st, a0, a1, L))
+        out = substep(model, cfg, s_, r_, st_, t_start, L_, a0_, a1_, compact=False)
+        st = jax.tree_util.tree_map(lambda x, y: x.at[idx].set(y, mode="drop"), st, out)
+        return st, todo.at[idx].set(False, mode="drop")
+
+    return jax.lax.while_loop(lambda c: jnp.any(c[1]), rounds, (st, hard))[0]
+
+
+def substep(model, cfg, s, r, st, t_start, L, a0, a1, compact=True):
     """Advance every member over [t_start, t_start + L] [s], the ground acceleration
-    linear from a0 to a1 [m/s²]."""
+    linear from a0 to a1 [m/s²]. With rk4 a large batch (`COMPACT_MIN` members) takes its
+    events in a compacted sub-batch (`_compacted`; `compact=False` turns this off)."""
+    if cfg.method == "rk4" and compact and _compact_width(a0.shape[0]):
+        return _compacted(model, cfg, s, r, st, t_start, L, a0, a1)
     da = (a1 - a0) / L
     tau = jnp.zeros_like(a0)
 
@@ -356,7 +419,10 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
         st, _ = jax.lax.scan(sub_body, st, jnp.arange(sub))
         return st, (per_member(model.observe, s)(st.y, st.mode) if cfg.full else None)
 
-    final, outs = jax.lax.scan(outer, st, jnp.arange(cfg.n_steps))
+    # checkpointed: reverse mode keeps one carry per record interval and recomputes the
+    # interval, instead of stacking every residual of every piece (fewer, larger steps)
+    final, outs = jax.lax.scan(jax.checkpoint(outer, prevent_cse=False), st,
+                               jnp.arange(cfg.n_steps))
     return _results(model, cfg, s, st, final, outs)
 
 

@@ -19,7 +19,10 @@ With `rk4` a large batch (`COMPACT_MIN` members or more) pays for the events onl
 they happen: one trial step for the whole batch, and the few members with an event in it
 (about 2 % on an earthquake record) take the pieces in a gathered sub-batch
 (`_compacted`), instead of every piece running for the whole batch whenever one member
-needs it (measured in `benchmarks/run.py --only yardstick`).
+needs it (measured in `benchmarks/run.py --only yardstick`). Its rounds are a
+`lax.while_loop`, so the compacted path is not reverse-differentiable; only
+`simulate_batch`, whose results are concrete arrays, runs batches that large (a
+differentiated `simulate`, also under `jax.vmap`, is a batch of one).
 
 Reverse-mode differentiable with `rk4` (a fixed number of pieces per step, each skipped by
 `lax.cond` when no member needs it), forward mode (`jax.jacfwd`) with `dopri5`.

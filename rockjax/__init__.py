@@ -33,6 +33,13 @@ from ._excitation import (  # noqa: E402
     GroundMotion as GroundMotion,
 )
 from ._fidelity import FidelityWarning as FidelityWarning  # noqa: E402
+from ._intensity import (  # noqa: E402
+    integrate_record as integrate_record,
+    pga as pga,
+    pgd as pgd,
+    pgv as pgv,
+    spectral_acceleration as spectral_acceleration,
+)
 from ._kinematics import (  # noqa: E402
     theta_from_u as theta_from_u,
     u_from_theta as u_from_theta,

@@ -20,21 +20,58 @@ def hermite(a0, m0, a1, m1, s):
     return val, der
 
 
+def _top(a0, m0, a1, m1):
+    """The s in [0, 1] of the interpolant's maximum (where its slope falls to 0 from m0 > 0;
+    0.5 when there is none)."""
+    A = 3 * (2 * (a0 - a1) + m0 + m1)  # H'(s) = A s^2 + Bq s + m0
+    Bq = -6 * (a0 - a1) - 4 * m0 - 2 * m1
+    disc = Bq * Bq - 4 * A * m0
+    pos = disc > 0  # a safe square root: finite derivatives on both sides of jnp.where
+    root = jnp.where(pos, jnp.sqrt(jnp.where(pos, disc, 1.0)), 0.0)
+    q = -0.5 * (Bq + jnp.where(Bq >= 0, 1.0, -1.0) * root)
+    r1 = jnp.where(q != 0, m0 / jnp.where(q != 0, q, 1.0), 2.0)
+    r2 = jnp.where(A != 0, q / jnp.where(A != 0, A, 1.0), 2.0)
+    r1 = jnp.where((r1 > 0) & (r1 < 1), r1, 2.0)
+    r2 = jnp.where((r2 > 0) & (r2 < 1), r2, 2.0)
+    s = jnp.minimum(r1, r2)  # the first turn of the slope
+    return jnp.where(s < 1, s, 0.5)
+
+
+def root_bracket(a0, m0, a1, m1):
+    """(left end s_l, value there) of the bracket of the interpolant's root. A condition
+    resting on its surface (a0 <= 0) and leaving it to the positive side (m0 > 0), as right
+    after a jump, crosses zero later (a1 < 0): its root is bracketed from the interpolant's
+    maximum, not from s = 0 (where a root at the start would repeat the jump)."""
+    grazing = (a0 <= 0) & (m0 > 0)
+    s_top = _top(a0, m0, a1, m1)
+    g_top, _ = hermite(a0, m0, a1, m1, s_top)
+    use = grazing & (g_top > 0)
+    return jnp.where(use, s_top, 0.0), jnp.where(use, g_top, a0)
+
+
+def root_estimate(a0, m0, a1, m1):
+    """The linear estimate of the root in [0, 1] from its bracket (for ordering events)."""
+    sl, gl = root_bracket(a0, m0, a1, m1)
+    den = gl - a1
+    return sl + (1 - sl) * jnp.where(den != 0, gl / jnp.where(den != 0, den, 1.0), 1.0)
+
+
 def hermite_root(a0, m0, a1, m1, iters=4):
-    """The s in [0, 1] where the Hermite interpolant is 0 (a0 >= 0 >= a1 bracket it).
+    """The s in [0, 1] where the Hermite interpolant is 0 (a0 >= 0 >= a1 bracket it, or a
+    condition leaving its surface at s = 0 comes back: `root_bracket`).
 
     Safeguarded Newton (bisection when a Newton step leaves the bracket), finishing with two
     plain Newton steps so that the root is converged and carries the implicit-function
     derivative.
     """
-    den = a0 - a1
+    lo, g_lo = root_bracket(a0, m0, a1, m1)
+    den = g_lo - a1
     safe = jnp.where(den != 0, den, 1.0)
-    s = jnp.clip(jnp.where(den != 0, a0 / safe, 0.5), 0.0, 1.0)
-    lo = jnp.zeros_like(s)
+    s = jnp.clip(lo + (1 - lo) * jnp.where(den != 0, g_lo / safe, 0.5), 0.0, 1.0)
     hi = jnp.ones_like(s)
     for _ in range(iters):
         g, der = hermite(a0, m0, a1, m1, s)
-        above = g * a0 > 0  # still on the starting side: the root lies beyond s
+        above = g * g_lo > 0  # still on the starting side: the root lies beyond s
         lo = jnp.where(above, s, lo)
         hi = jnp.where(above, hi, s)
         ok = der != 0

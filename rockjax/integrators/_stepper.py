@@ -36,7 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._hermite import hermite_root, piece_peak
+from ._hermite import hermite_root, piece_peak, root_estimate
 from ._tally import Tally, tally_event, tally_fail, tally_peak, tally_start
 
 #: classical Runge–Kutta 4 as a diffrax tableau (diffrax ships no RK4 solver)
@@ -152,8 +152,7 @@ def locate(model, cfg, s, y, mode, tau, h, a0, da, tr, fire):
     is then located on its cubic Hermite interpolant (one root find, not one per
     condition: the batch pays for every piece any member needs).
     """
-    den = tr.g0 - tr.g1
-    lin = jnp.where(fire, tr.g0 / jnp.where(den != 0, den, 1.0), 2.0)
+    lin = jnp.where(fire, root_estimate(tr.g0, tr.dg0 * h, tr.g1, tr.dg1 * h), 2.0)
     which = jnp.argmin(lin).astype(jnp.int32)
     root = hermite_root(tr.g0[which], tr.dg0[which] * h, tr.g1[which], tr.dg1[which] * h)
     hp = root * h
@@ -293,9 +292,10 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     def rounds(carry):  # up to `width` members with events at a time (usually one round)
         st, todo = carry
         idx = jnp.nonzero(todo, size=width, fill_value=n)[0]
-        s_, r_, st_, a0_, a1_, L_ = jax.tree_util.tree_map(lambda x: _take(x, idx, n),
-                                                           (s, r, st, a0, a1, L))
-        out = substep(model, cfg, s_, r_, st_, t_start, L_, a0_, a1_, compact=False)
+        # t_start is per member when the members have their own grid steps
+        s_, r_, st_, a0_, a1_, L_, t_ = jax.tree_util.tree_map(
+            lambda x: _take(x, idx, n), (s, r, st, a0, a1, L, t_start))
+        out = substep(model, cfg, s_, r_, st_, t_, L_, a0_, a1_, compact=False)
         st = jax.tree_util.tree_map(lambda x, y: x.at[idx].set(y, mode="drop"), st, out)
         return st, todo.at[idx].set(False, mode="drop")
 
@@ -367,7 +367,8 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
     """Integrate a batch with `model`. Per-member inputs (`rec`, `scale`, `u0` [m], `v0`
     [m/s], `r`, and the fields of `structure`) have shape `(N,)` or `()`; `table` is
     `(n_records, n_samples + pad)` [m/s²], zero beyond each record's end; `dt_rec` [s] the
-    record step (the output grid step for a free vibration) and `t1` [s] the end time.
+    record step (the output grid step for a free vibration; shape `(N,)` gives each member
+    its own grid, e.g. pulses of different lengths) and `t1` [s] the end time.
 
     `t1` of shape `(N,)` gives each member its own end: a member stops there (its last
     step shortened to end exactly at its `t1`) and nothing after it counts: no impacts,

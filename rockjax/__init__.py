@@ -21,7 +21,12 @@ from ._devices import use_all_cores as _use_all_cores  # noqa: E402
 # one CPU device per core, so that batches use every core (see rockjax/_devices.py)
 _use_all_cores()
 
-from . import datasets as datasets, integrators as integrators, models as models  # noqa: E402
+from . import (  # noqa: E402
+    datasets as datasets,
+    integrators as integrators,
+    models as models,
+    pulses as pulses,
+)
 from ._batch import (  # noqa: E402
     DEFAULT_TAIL as DEFAULT_TAIL,
     simulate_batch as simulate_batch,
@@ -59,6 +64,10 @@ from ._records import (  # noqa: E402
 )
 from ._response import Response as Response, STATUS as STATUS  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
+from ._spectrum import (  # noqa: E402
+    overturning_spectrum as overturning_spectrum,
+    OverturningSpectrum as OverturningSpectrum,
+)
 from ._status import Status as Status  # noqa: E402
 from ._structure import (  # noqa: E402
     DERIVED as DERIVED,

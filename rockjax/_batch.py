@@ -273,7 +273,8 @@ def _stepper_chunk(model, batched, shared, table, lengths, dt_rec, cfg, n_device
         vals = {**shared, **batched}
         n = next(iter(batched.values())).shape[0]
         u0, v0 = (jnp.broadcast_to(vals[k], (n,)) for k in ("u0", "v0"))
-        return run(model, _member_structure(vals), table, vals["record"], dt_rec,
+        dt = vals.get("dt_rec", dt_rec)  # a grid step per member (pulses of any length)
+        return run(model, _member_structure(vals), table, vals["record"], dt,
                    vals["scale"], u0, v0, vals["r"], vals["t_end"], cfg, lengths)
 
     if n_devices == 1:

@@ -1,0 +1,389 @@
+r"""`rockjax.overturning_spectrum`: the smallest pulse amplitude that overturns a structure.
+
+For each pulse period (a rectangular pulse: its duration) the lowest amplitude [m/s²] of a
+`rockjax.pulses` pulse that overturns the structure, found by batches of runs on the rk4
+stepper: a scan of `n_scan` amplitudes per period, geometric from 0.25 to
+$4\max(1, x)$ times $g\tan\alpha$ ($x = \omega_p/p$, or $1/(p\,t_1)$ for a rectangular
+pulse; widened upwards where nothing overturns), then multisection of the bracket below
+the lowest overturning amplitude, every period in one batch per round, until the bracket
+is within `rtol`. The pulses overturn a block in two modes, after one or more impacts and
+without impact (Zhang & Makris 2001); the overturning amplitudes need not form one
+interval, so the scan finds the lowest, and the smallest amplitude that overturns without
+an impact is bracketed alongside. Here $p = \sqrt{W R_c / I_O}$ [rad/s] (Housner's
+frequency parameter, $I_O$ about a base corner) and $\tan\alpha = B/H_c$ (the rigid
+block's uplift acceleration is $g\tan\alpha$).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import jax.numpy as jnp
+import numpy as np
+
+from . import pulses as _pulses
+from ._batch import _devices, _progress, _stepper_chunk_jit
+from ._response import STATUS
+from ._structure import FIELDS, RockingStructure
+from .integrators import StepperConfig
+from .models import get_model
+
+#: substep length cap for the springs: omega h <= 0.5 (RK4 refuses omega h > 2.5)
+_OMEGA_H = 0.5
+#: no impact limit: a block that falls back chatters to rest (a rigid block's impacts
+#: accumulate geometrically), and a run that stopped at a limit would not tell survival
+_MAX_IMPACTS = 2**30
+_OVERTURNED = STATUS["overturned"]
+_COMPLETED = STATUS["completed"]
+
+
+@dataclasses.dataclass(frozen=True)
+class OverturningSpectrum:
+    r"""Minimum overturning amplitudes of a pulse, one per period (SI units).
+
+    - `kind`: "rectangular", "one_sine" or "one_cosine"; `periods` [s] (a rectangular
+      pulse's durations $t_1$).
+    - `amplitude` [m/s²]: the lowest amplitude that overturns (the middle of `bracket`, the
+      highest amplitude seen to survive and the lowest seen to overturn, within `rtol`);
+      NaN where nothing up to `max_ratio` $g\tan\alpha$ overturned.
+    - `mode`: "no impact" or "after impact" — how the lowest-amplitude run overturned.
+    - `amplitude_no_impact`, `bracket_no_impact`: the same for overturning without impact.
+    - `p` [rad/s], `g_tan_alpha` [m/s²]: the normalisation (module docstring); `x` the
+      abscissa of the literature's plot, $\omega_p/p = 2\pi/(pT)$, or $p\,t_1$ for a
+      rectangular pulse; `normalised`: amplitude / ($g\tan\alpha$).
+    - `dt` [s]: each period's pulse sample step (`rockjax.pulses.pulse(kind, a, T,
+      max_dt=dt)` reproduces a run), `t_end` [s] each run's end.
+    - `n_runs`, `n_failed` (runs with status max_impacts or solver_failure, counted as
+      survivors), `wall_time` [s].
+    """
+
+    kind: str
+    model: str
+    periods: np.ndarray
+    amplitude: np.ndarray
+    bracket: np.ndarray
+    mode: tuple
+    amplitude_no_impact: np.ndarray
+    bracket_no_impact: np.ndarray
+    p: float
+    g_tan_alpha: float
+    rtol: float
+    dt: np.ndarray
+    t_end: np.ndarray
+    n_runs: int
+    n_failed: int
+    wall_time: float
+
+    @property
+    def x(self) -> np.ndarray:
+        """$\\omega_p/p$ (sine, cosine) or $p\\,t_1$ (rectangular): the plot's abscissa."""
+        if self.kind == "rectangular":
+            return self.p * self.periods
+        return 2 * np.pi / (self.p * self.periods)
+
+    @property
+    def x_label(self) -> str:
+        return "p t1" if self.kind == "rectangular" else "omega_p / p"
+
+    @property
+    def normalised(self) -> np.ndarray:
+        """amplitude / ($g\\tan\\alpha$)."""
+        return self.amplitude / self.g_tan_alpha
+
+    def to_dict(self) -> dict:
+        """Plain Python values (lists, floats, None for NaN), e.g. for JSON."""
+        def floats(a):
+            return [None if not np.isfinite(v) else float(v) for v in np.ravel(a)]
+
+        return {
+            "kind": self.kind, "model": self.model, "periods_s": floats(self.periods),
+            "amplitude_m_s2": floats(self.amplitude),
+            "bracket_m_s2": [floats(b) for b in self.bracket],
+            "normalised": floats(self.normalised), "x": floats(self.x),
+            "x_label": self.x_label, "mode": list(self.mode),
+            "amplitude_no_impact_m_s2": floats(self.amplitude_no_impact),
+            "p_rad_s": self.p, "g_tan_alpha_m_s2": self.g_tan_alpha, "rtol": self.rtol,
+            "dt_s": floats(self.dt), "t_end_s": floats(self.t_end), "n_runs": self.n_runs,
+            "n_failed": self.n_failed, "wall_time_s": self.wall_time,
+        }
+
+    def plot(self, ax=None, label=None):
+        """amplitude / ($g\\tan\\alpha$) against `x` (matplotlib; returns the axes): the
+        lowest overturning amplitude, and the no-impact mode where it is higher."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6, 4))
+        order = np.argsort(self.x)
+        x = self.x[order]
+        line, = ax.plot(x, self.normalised[order], "-", lw=1.8,
+                        label=label or f"{self.kind}, lowest amplitude")
+        no = self.amplitude_no_impact[order] / self.g_tan_alpha
+        if np.any(no > self.normalised[order] * (1 + 2 * self.rtol)):
+            ax.plot(x, no, "--", lw=1, color=line.get_color(),
+                    label=f"{label or self.kind}: overturning without impact")
+        ax.set_xlabel("$p\\,t_1$" if self.kind == "rectangular" else "$\\omega_p / p$")
+        ax.set_ylabel("$a / (g \\tan\\alpha)$")
+        ax.set_title(f"overturning spectrum ({self.kind} pulse, model {self.model})",
+                     fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        return ax
+
+
+def _check_periods(periods):
+    T = np.asarray(periods, dtype=float)
+    if T.ndim == 0:
+        T = T[None]
+    if T.ndim != 1 or T.size == 0:
+        raise ValueError(f"periods must be a non-empty 1-D array [s], got shape {T.shape}")
+    if not np.all(np.isfinite(T) & (T > 0)):
+        raise ValueError(f"periods must be positive and finite [s], got {T}")
+    return T
+
+
+def _check_structure(structure):
+    if not isinstance(structure, RockingStructure):
+        raise ValueError(f"structure must be a RockingStructure, got {type(structure).__name__}")
+    if any(np.ndim(getattr(structure, k)) for k in FIELDS):
+        raise ValueError("structure must hold one structure (scalar fields): a spectrum "
+                         "is computed for one structure at a time")
+
+
+def _check_options(rtol, n_scan, max_ratio, t_free):
+    if not (isinstance(rtol, (int, float)) and 1e-8 <= rtol <= 0.1):
+        raise ValueError(f"rtol must lie in [1e-8, 0.1], got {rtol!r}")
+    if not (isinstance(n_scan, int) and 8 <= n_scan <= 4096):
+        raise ValueError(f"n_scan must be an integer in [8, 4096], got {n_scan!r}")
+    if not (isinstance(max_ratio, (int, float)) and max_ratio > 4):
+        raise ValueError(f"max_ratio must be a number > 4, got {max_ratio!r}")
+    if t_free is not None and not (np.isfinite(t_free) and t_free > 0):
+        raise ValueError(f"t_free must be a positive number of seconds, got {t_free!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Runner:
+    """Runs of the spectrum's pulses: period i's pulse is row i of `table`, sampled every
+    `dt[i]` [s], and its run ends at `t_end[i]` [s]; every call runs in chunks of
+    `chunk` members (one compiled program)."""
+
+    model: object
+    shared: dict
+    table: jnp.ndarray
+    lengths: jnp.ndarray
+    dt: np.ndarray
+    t_end: np.ndarray
+    cfg: StepperConfig
+    n_devices: int
+    chunk: int
+
+    def __call__(self, idx, amp):
+        """(status, n_impacts) of the runs of period `idx` at amplitude `amp` [m/s²]."""
+        N = len(idx)
+        status, impacts = [], []
+        dtype = self.table.dtype
+        for lo in range(0, N, self.chunk):
+            sel = np.minimum(np.arange(lo, lo + self.chunk), N - 1)
+            i = idx[sel]
+            batched = {"record": jnp.asarray(i, jnp.int32),
+                       "scale": jnp.asarray(amp[sel], dtype),
+                       "dt_rec": jnp.asarray(self.dt[i], dtype),
+                       "t_end": jnp.asarray(self.t_end[i], dtype)}
+            out = _stepper_chunk_jit(self.model, batched, self.shared, self.table,
+                                     self.lengths, jnp.asarray(0.0, dtype), self.cfg,
+                                     self.n_devices)
+            n = min(self.chunk, N - lo)
+            status.append(np.asarray(out["status"])[:n])
+            impacts.append(np.asarray(out["n_impacts"])[:n])
+        return np.concatenate(status), np.concatenate(impacts)
+
+
+def _runner(structure, model, kind, T, t_free, substeps, devices, n_members, r):
+    """The `_Runner` of one spectrum: each period's pulse on a grid of at most
+    `rockjax.pulses.MAX_DT` and of omega h <= 0.5 per substep (the springs)."""
+    dtype = jnp.result_type(structure.B)
+    s = structure.evaluated()
+    omega = float(model.frequency(s))
+    max_dt = min(_pulses.MAX_DT, substeps * _OMEGA_H / omega)
+    rows = [_pulses.pulse(kind, 1.0, t, max_dt=max_dt) for t in T]
+    dt = np.array([float(g.dt) for g in rows])
+    lengths = np.array([g.accel.shape[-1] for g in rows])
+    table = np.zeros((len(rows), int(lengths.max())))
+    for i, g in enumerate(rows):
+        table[i, : lengths[i]] = np.asarray(g.accel)
+    t_end = T + t_free
+    n_steps = int(np.max(np.ceil(t_end / dt - 1e-9)))
+    cfg = StepperConfig(method="rk4", substeps=substeps, n_steps=n_steps, forced=True,
+                        full=False, max_impacts=_MAX_IMPACTS, max_pieces=model.default_max_pieces(),
+                        rtol=1e-8, atol=1e-10)
+    n_dev = _devices(devices)
+    chunk = n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev)
+    shared = {k: jnp.asarray(getattr(structure, k), dtype) for k in FIELDS}
+    shared.update(u0=jnp.zeros((), dtype), v0=jnp.zeros((), dtype),
+                  r=jnp.asarray(structure.restitution if r is None else r, dtype))
+    return _Runner(model=model, shared=shared, table=jnp.asarray(table, dtype),
+                   lengths=jnp.asarray(lengths, jnp.int32), dt=dt, t_end=t_end, cfg=cfg,
+                   n_devices=n_dev, chunk=chunk)
+
+
+_BRACKET, _UP, _DOWN, _DONE, _NONE = range(5)
+
+
+@dataclasses.dataclass
+class _Search:
+    """Two searches per period (target 0: any overturning, 1: without impact): `lo` [m/s²]
+    the highest amplitude seen to survive below `hi`, the lowest seen to overturn (NaN
+    until seen), `state` (_BRACKET, _UP: nothing overturned yet, _DOWN: nothing survived
+    yet, _DONE, _NONE: nothing overturns below the cap), `hi_imp` the impacts of the run
+    at `hi`."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    state: np.ndarray
+    hi_imp: np.ndarray
+    rtol: float
+    cap: tuple  # (lowest, highest) amplitude [m/s²] searched
+
+    @classmethod
+    def start(cls, n, rtol, cap):
+        nan = np.full((2, n), np.nan)
+        return cls(nan, nan.copy(), np.full((2, n), _UP), np.zeros((2, n), int), rtol, cap)
+
+    def active(self):
+        return list(zip(*np.nonzero(np.isin(self.state, (_BRACKET, _UP, _DOWN)))))
+
+    def points(self, k, i, m):
+        """m increasing amplitudes [m/s²] to try next in search (k, i)."""
+        lo, hi, st = self.lo[k, i], self.hi[k, i], self.state[k, i]
+        j = np.arange(1, m + 1)
+        if st == _BRACKET:
+            return lo * (hi / lo) ** (j / (m + 1))
+        if st == _UP:
+            return lo * 16.0 ** (j / m)
+        return hi / 16.0 ** (j[::-1] / m)  # _DOWN: below the lowest overturning
+
+    def update(self, k, i, pts, hit, imp):
+        """Take the runs at `pts` (increasing): `hit` where the target's overturning
+        happened, `imp` their impacts."""
+        first = np.flatnonzero(hit)
+        if first.size == 0:
+            self.lo[k, i] = pts[-1]
+            if np.isnan(self.hi[k, i]):
+                self.state[k, i] = _NONE if pts[-1] >= self.cap[1] else _UP
+                return
+        else:
+            j = int(first[0])
+            self.hi[k, i], self.hi_imp[k, i] = pts[j], imp[j]
+            if j > 0:
+                self.lo[k, i] = pts[j - 1]
+            elif np.isnan(self.lo[k, i]):
+                self.state[k, i] = _NONE if pts[0] <= self.cap[0] else _DOWN
+                return
+        self.state[k, i] = _BRACKET
+        if self.hi[k, i] / self.lo[k, i] - 1 <= self.rtol:
+            self.state[k, i] = _DONE
+
+
+def _targets(status, impacts):
+    """(any overturning, overturning without impact) of each run."""
+    over = status == _OVERTURNED
+    return over, over & (impacts == 0)
+
+
+def _search(runner, search, scan, m, bar, max_rounds=60):
+    """The scan (`scan` (P, n) amplitudes [m/s²]), then rounds of `m` amplitudes per open
+    search until every search is done. Returns (runs, failed runs)."""
+    P, n = scan.shape
+    status, imp = runner(np.repeat(np.arange(P), n), scan.ravel())
+    n_runs, n_failed = status.size, _failed(status)
+    hits = _targets(status.reshape(P, n), imp.reshape(P, n))
+    for k in (0, 1):
+        for i in range(P):
+            search.update(k, i, scan[i], hits[k][i], imp.reshape(P, n)[i])
+    bar and bar.update(status.size)
+    for _ in range(max_rounds):
+        todo = search.active()
+        if not todo:
+            break
+        pts = np.stack([search.points(k, i, m) for k, i in todo])
+        idx = np.repeat([i for _, i in todo], m)
+        status, imp = runner(idx, pts.ravel())
+        n_runs, n_failed = n_runs + status.size, n_failed + _failed(status)
+        hits = _targets(status.reshape(-1, m), imp.reshape(-1, m))
+        for row, (k, i) in enumerate(todo):
+            search.update(k, i, pts[row], hits[k][row], imp.reshape(-1, m)[row])
+        bar and bar.update(status.size)
+    return n_runs, n_failed
+
+
+def _failed(status):
+    return int(np.sum((status != _OVERTURNED) & (status != _COMPLETED)))
+
+
+def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact="paper",
+                         rtol=1e-3, r=None, n_scan=48, max_ratio=1000.0, t_free=None, substeps=4, devices=None,
+                         progress=None) -> OverturningSpectrum:
+    r"""The lowest amplitude [m/s²] of a pulse that overturns `structure`, per period.
+
+    **Arguments:**
+
+    - `structure`: one `RockingStructure` (SI units).
+    - `kind`: "rectangular" (Housner's pulse, `periods` are its durations $t_1$),
+      "one_sine" / "sine" or "one_cosine" / "cosine" (`rockjax.pulses`).
+    - `periods` [s]: positive, any order.
+    - `model`: a model of the fidelity ladder (default `"rigid_body"`, the body's own
+      equation: `docs/models.md`), `impact` its impact rule (the SDOF models, as in
+      `rockjax.simulate`); `r`: the restitution (default the structure's, Eq. 3).
+    - `rtol`: the relative width of the final bracket (default 1e-3).
+    - `n_scan`: amplitudes per period in the first scan (default 48; an overturning range
+      narrower than the scan's step, about 11 %, below the lowest one found can be
+      missed); `max_ratio`: give up above `max_ratio` $g\tan\alpha$ (NaN).
+    - `t_free` [s]: how long each run goes on after its pulse (default $20/p$: a run near
+      the threshold lingers near the unstable equilibrium for about
+      $\ln(1/\epsilon)/p$); `substeps`: RK4 steps per sample step; `devices`, `progress`
+      as `simulate_batch`.
+
+    **Returns:** an `OverturningSpectrum` (`.plot()` draws it as the literature does,
+    amplitude / ($g\tan\alpha$) against $\omega_p/p$, or $p\,t_1$ for a rectangular pulse).
+    """
+    start = time.perf_counter()
+    _check_structure(structure)
+    if kind not in _pulses.KINDS:
+        raise ValueError(f"kind must be one of {sorted(_pulses.KINDS)}, got {kind!r}")
+    kind = _pulses.KINDS[kind]
+    T = _check_periods(periods)
+    _check_options(rtol, n_scan, max_ratio, t_free)
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+    mdl = get_model(model, impact)
+    p = math.sqrt(float(structure.W * structure.R_c / structure.I_O))
+    gta = float(structure.g * structure.B / structure.H_c)
+    t_free = 20.0 / p if t_free is None else float(t_free)
+    x = 1.0 / (p * T) if kind == "rectangular" else 2 * np.pi / (p * T)
+    scan = gta * np.geomspace(0.25, 4.0 * np.maximum(1.0, x), n_scan, axis=-1)
+    runner = _runner(structure, mdl, kind, T, t_free, substeps, devices, T.size * n_scan, r)
+    search = _Search.start(T.size, float(rtol), (1e-3 * gta, max_ratio * gta))
+    bar = _progress(3 * T.size * n_scan, progress, "overturning spectrum")
+    try:
+        n_runs, n_failed = _search(runner, search, scan, max(4, n_scan // 2), bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    return _result(kind, model, T, search, p, gta, float(rtol), runner, n_runs, n_failed,
+                   time.perf_counter() - start)
+
+
+def _result(kind, model, T, search, p, gta, rtol, runner, n_runs, n_failed, wall):
+    found = search.state == _DONE
+    amp = np.where(found, np.sqrt(search.lo * search.hi), np.nan)
+    bracket = np.where(found[..., None], np.stack([search.lo, search.hi], -1), np.nan)
+    mode = tuple("after impact" if n > 0 else "no impact" if f else "none"
+                 for n, f in zip(search.hi_imp[0], found[0]))
+    return OverturningSpectrum(
+        kind=kind, model=model if isinstance(model, str) else type(model).__name__,
+        periods=T, amplitude=amp[0], bracket=bracket[0], mode=mode,
+        amplitude_no_impact=amp[1], bracket_no_impact=bracket[1], p=p, g_tan_alpha=gta,
+        rtol=rtol, dt=runner.dt, t_end=runner.t_end, n_runs=int(n_runs),
+        n_failed=int(n_failed), wall_time=float(wall))

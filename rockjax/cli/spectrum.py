@@ -1,0 +1,141 @@
+"""`rockjax spectrum`: the overturning spectrum of a structure under a pulse."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+
+import rockjax
+
+from ._common import (
+    _check_out_dir,
+    _check_png,
+    _check_r,
+    _load_structure,
+    _scale_list,
+    _scale_range,
+    _write_csv,
+    add_model_arguments,
+    CLIError,
+    model_info,
+    model_line,
+)
+
+#: --pulse names and the `rockjax.pulses` kinds
+PULSES = {"rectangular": "rectangular", "sine": "one_sine", "cosine": "one_cosine"}
+#: the --out CSV columns and their units
+CSV_COLUMNS = {"period": "s", "x": "-", "amplitude": "m/s2", "normalised": "-",
+               "amplitude_no_impact": "m/s2", "bracket_lo": "m/s2", "bracket_hi": "m/s2"}
+
+
+def _positive_values(option):
+    """A comma list "0.5,1,2" or a range "START:STOP:N" (N points, inclusive) of positive
+    numbers."""
+
+    def conv(text):
+        t = text.strip()
+        if ":" in t:
+            a, b, n = _scale_range(text, t.split(":"))
+            values = list(np.linspace(a, b, n))
+        else:
+            values = _scale_list(text, t)
+        if not all(math.isfinite(x) and x > 0 for x in values):
+            raise argparse.ArgumentTypeError(f"{option} must be positive and finite, got {text!r}")
+        return [float(f"{x:.12g}") for x in values]
+
+    return conv
+
+
+def add_parser(subparsers):
+    q = subparsers.add_parser(
+        "spectrum",
+        help="overturning spectrum: the smallest pulse amplitude that overturns, per period",
+        description="For each period of a pulse (a rectangular pulse: its duration), the "
+        "smallest amplitude that overturns the structure (overturning after impacts or "
+        "without), found by batches of runs and multisection to --rtol. Plotted as the "
+        "literature does: a / (g tan alpha) against omega_p / p (p t1 for a rectangular "
+        "pulse), p = sqrt(W R / I_O).",
+    )
+    q.add_argument("--pulse", required=True, choices=list(PULSES),
+                   help="rectangular (Housner), sine (one-sine, Zhang & Makris type A) or "
+                   "cosine (one-cosine, type B)")
+    which = q.add_mutually_exclusive_group(required=True)
+    which.add_argument("--periods", type=_positive_values("--periods"), metavar="T",
+                       help="pulse periods [s] (rectangular: durations), a list 0.2,0.5,1 "
+                       "or a range START:STOP:N")
+    which.add_argument("--ratios", type=_positive_values("--ratios"), metavar="X",
+                       help="the same as omega_p / p (rectangular: p t1), a list or a range")
+    q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
+    add_model_arguments(q, "model (default rigid_body, the body's own equation)",
+                        fidelity=False)
+    q.set_defaults(model="rigid_body")
+    q.add_argument("--rtol", type=float, default=1e-3,
+                   help="relative width of each final bracket (default 1e-3)")
+    q.add_argument("--plot", metavar="FILE.png", help="write the spectrum plot")
+    q.add_argument("--out", metavar="FILE.csv", help="write the spectrum as CSV (SI units)")
+    q.add_argument("--json", action="store_true", help="print one JSON object and nothing else")
+    q.set_defaults(func=run)
+    return q
+
+
+def _periods(args, s):
+    if args.periods is not None:
+        return np.asarray(args.periods)
+    p = math.sqrt(float(s.W * s.R_c / s.I_O))
+    x = np.asarray(args.ratios)
+    return x / p if args.pulse == "rectangular" else 2 * math.pi / (p * x)
+
+
+def _print_report(args, sp, info):
+    print(f"overturning spectrum, {sp.kind} pulse ({model_line(info)})")
+    print(f"p = {sp.p:.4g} rad/s, g tan(alpha) = {sp.g_tan_alpha:.4g} m/s2, rtol {sp.rtol:g}")
+    x = "p t1" if sp.kind == "rectangular" else "wp/p"
+    print(f"{'period [s]':>11} {x:>7} {'a [m/s2]':>10} {'a/(g tan a)':>12}  {'mode':<13}"
+          f"{'no impact [m/s2]':>17}")
+    for i in np.argsort(sp.periods):
+        print(f"{sp.periods[i]:11.4g} {sp.x[i]:7.3f} {sp.amplitude[i]:10.4g} "
+              f"{sp.normalised[i]:12.4f}  {sp.mode[i]:<13}{sp.amplitude_no_impact[i]:17.4g}")
+    print(f"{sp.n_runs} runs in {sp.wall_time:.2f} s; {sp.n_failed} failed runs "
+          "(max_impacts, solver_failure) counted as survivors")
+    if np.any(np.isnan(sp.amplitude)):
+        print("nan: nothing overturned up to 1000 g tan(alpha)")
+
+
+def run(args):
+    s = _load_structure(args.structure)
+    _check_r(args.r)
+    _check_png(args.plot)
+    _check_out_dir("--plot", args.plot)
+    _check_out_dir("--out", args.out)
+    if not 1e-8 <= args.rtol <= 0.1:
+        raise CLIError(f"--rtol must lie in [1e-8, 0.1], got {args.rtol}")
+    T = _periods(args, s)
+    sp = rockjax.overturning_spectrum(s, PULSES[args.pulse], T, model=args.model,
+                                      impact=args.impact, r=args.r, rtol=args.rtol,
+                                      progress=None if not args.json else False)
+    info = model_info(args)
+    if args.plot:
+        import matplotlib.pyplot as plt
+
+        ax = sp.plot()
+        ax.figure.savefig(args.plot, dpi=150, bbox_inches="tight")
+        plt.close(ax.figure)
+    if args.out:
+        _write_csv(args.out, {"period": sp.periods, "x": sp.x, "amplitude": sp.amplitude,
+                              "normalised": sp.normalised,
+                              "amplitude_no_impact": sp.amplitude_no_impact,
+                              "bracket_lo": sp.bracket[:, 0], "bracket_hi": sp.bracket[:, 1]},
+                   CSV_COLUMNS)
+    if args.json:
+        print(json.dumps({**sp.to_dict(), "model_info": info, "plot": args.plot,
+                          "csv": args.out}))
+        return 0
+    _print_report(args, sp, info)
+    for what, path in (("plot", args.plot), ("CSV", args.out)):
+        if path:
+            print(f"{what} written to {path}")
+    return 0
+

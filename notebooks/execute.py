@@ -137,7 +137,9 @@ def shared_el_centro() -> pathlib.Path:
 
 
 def uses_el_centro(nb) -> bool:
-    return any("datasets.el_centro()" in s for s in code_sources(nb))
+    """Whether `nb` reads the shared records: El Centro, or the shared folder."""
+    return any("datasets.el_centro()" in s or "ROCKJAX_SHARED_DATA" in s
+               for s in code_sources(nb))
 
 
 def kernel_arguments(dpi: int | None = DPI) -> list[str]:
@@ -155,12 +157,14 @@ def execute_notebook(nb, *, el_centro: pathlib.Path, workdir: pathlib.Path,
     """Run `nb` (a NotebookNode, changed in place) in a fresh `python3` kernel.
 
     The kernel's environment is this process's plus `ROCKJAX_EL_CENTRO=el_centro` (a
-    missing file makes the notebooks fall back to synthetic motion) and `ROCKJAX_CACHE`
+    missing file makes the notebooks fall back to synthetic motion), `ROCKJAX_SHARED_DATA`
+    its folder (the shared records of notebook 08) and `ROCKJAX_CACHE`
     under `workdir`, the kernel's working folder. Raises nbclient's CellExecutionError.
     """
     import nbclient
 
     env = dict(os.environ, ROCKJAX_EL_CENTRO=str(el_centro),
+               ROCKJAX_SHARED_DATA=str(pathlib.Path(el_centro).parent),
                ROCKJAX_CACHE=str(pathlib.Path(workdir) / "cache"))
     client = nbclient.NotebookClient(
         nb, timeout=timeout, kernel_name="python3", record_timing=False,

@@ -584,6 +584,33 @@ API = [
     case("F13", "str", _fit(structure="table1"), "structure must be a rockjax.RockingStructure"),
     case("F13", "batch", _fit(structure=S.replace(k_f=np.full(2, 5e5))),
          "structure must be a single structure"),
+    # pulses and overturning spectra
+    case("O1", "period", lambda d: rockjax.pulses.one_sine(1.0, -1.0),
+         "period must be a positive finite number, got -1.0"),
+    case("O1", "duration", lambda d: rockjax.pulses.rectangular(1.0, "x"),
+         "duration must be a positive number, got 'x'"),
+    case("O2", "nan", lambda d: rockjax.pulses.one_cosine(NAN, 1.0),
+         "amplitude must be finite [m/s²], got nan"),
+    case("O3", "few", lambda d: rockjax.pulses.one_sine(1.0, 1.0, steps=4),
+         "steps must be at least 8 for a one_sine pulse, got 4"),
+    case("O3", "float", lambda d: rockjax.pulses.rectangular(1.0, 1.0, steps=2.5),
+         "steps must be a positive integer, got 2.5"),
+    case("O4", "pulse", lambda d: rockjax.pulses.pulse("square", 1.0, 1.0),
+         "kind must be one of ['cosine', 'one_cosine', 'one_sine', 'rectangular', 'sine'], "
+         "got 'square'"),
+    case("O4", "spectrum", lambda d: rockjax.overturning_spectrum(S, "square", [1.0]),
+         "kind must be one of"),
+    case("O5", "negative", lambda d: rockjax.overturning_spectrum(S, "sine", [1.0, -2.0]),
+         "periods must be positive and finite [s]"),
+    case("O5", "empty", lambda d: rockjax.overturning_spectrum(S, "sine", []),
+         "periods must be a non-empty 1-D array [s]"),
+    case("O6", "rtol", lambda d: rockjax.overturning_spectrum(S, "sine", [1.0], rtol=0.5),
+         "rtol must lie in [1e-8, 0.1], got 0.5"),
+    case("O6", "n_scan", lambda d: rockjax.overturning_spectrum(S, "sine", [1.0], n_scan=2),
+         "n_scan must be an integer in [8, 4096], got 2"),
+    case("O7", "batch", lambda d: rockjax.overturning_spectrum(
+        S.replace(k_f=np.full(2, 5e5)), "sine", [1.0]),
+        "structure must hold one structure (scalar fields)"),
 ]
 
 
@@ -603,6 +630,15 @@ def cli(row, tag, argv, match):
 
 
 CLI = [
+    # pulses and spectra
+    cli("O4", "pulse", ["spectrum", "--pulse", "square", "--periods", "1"],
+        "argument --pulse: invalid choice: 'square'"),
+    cli("O5", "periods", ["spectrum", "--pulse", "sine", "--periods", "1,-1"],
+        "argument --periods: --periods must be positive and finite, got '1,-1'"),
+    cli("O5", "ratios", ["spectrum", "--pulse", "sine", "--ratios", "0:1:3"],
+        "argument --ratios: --ratios must be positive and finite"),
+    cli("O6", "rtol", ["spectrum", "--pulse", "sine", "--ratios", "1", "--rtol", "2"],
+        "--rtol must lie in [1e-8, 0.1], got 2.0"),
     # structure files
     cli("S1", "simulate", SIM + ["--structure", "neg_me.toml"], "m_e (mass) must be positive"),
     cli("S3", "pushover", ["pushover", "--structure", "zero_B.toml"], "B (half-width)"),

@@ -38,6 +38,12 @@ from ._excitation import (  # noqa: E402
     GroundMotion as GroundMotion,
 )
 from ._fidelity import FidelityWarning as FidelityWarning  # noqa: E402
+from ._fragility import (  # noqa: E402
+    fragility as fragility,
+    FragilityResult as FragilityResult,
+    sweep as sweep,
+    SweepResult as SweepResult,
+)
 from ._intensity import (  # noqa: E402
     integrate_record as integrate_record,
     pga as pga,

@@ -356,3 +356,50 @@ def test_sweep_runs_the_2dof_body(tmp_path):
     assert [int(x["n_impacts"]) for x in rows] == list(ref.n_impacts)
     assert [x["model"] for x in rows] == ["two_spring_2dof"] * 2
     assert max(ref.peak_u) > 0
+
+
+def test_fraction_overturned_leaves_failed_runs_out(sweep, monkeypatch, tmp_path):
+    """Runs that fail (here max_impacts, from a bound of 14 impacts put on every batch) are
+    left out of the fraction overturned and reported apart (JSON, text, plot); before, they
+    counted as survivors."""
+    import functools
+
+    monkeypatch.setattr(rockjax, "simulate_batch",
+                        functools.partial(rockjax.simulate_batch, max_impacts=14))
+    csv_path, png = tmp_path / "out.csv", tmp_path / "out.png"
+    rc, out, err = _main(sweep["base"] + ["--out", str(csv_path), "--plot", str(png), "--json"])
+    assert rc == 0, err
+    info = json.loads(out)
+    with open(csv_path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    status = np.array([r["status"] for r in rows]).reshape(len(SCALES), 2)
+    over = (status == "overturned").sum(1)
+    usable = np.isin(status, ["completed", "overturned"]).sum(1)
+    failed = (~np.isin(status, ["completed", "overturned"])).sum(1)
+    assert info["status_counts"]["max_impacts"] == failed.sum() > 0
+    want = [None if u == 0 else float(o / u) for o, u in zip(over, usable)]
+    assert info["fraction_overturned"] == {"table1": want}
+    assert info["failed_by_scale"] == {"table1": failed.tolist()}
+    # the old rule (failed runs as survivors, over every record) differs here
+    assert any(w is not None and w != o / 2 for w, o in zip(want, over))
+    assert png.stat().st_size > 10_000
+    monkeypatch.chdir(tmp_path)
+    rc, text, err = _main(sweep["base"])
+    assert rc == 0, err
+    n_used = int(usable.sum())
+    assert (f"overturned    {over.sum()} of the {n_used} runs that completed or overturned"
+            in text)
+    assert f"{failed.sum()} failed runs left out (max_impacts {failed.sum()})" in text
+    assert "failed runs by scale (max_impacts, solver_failure; left out of the fractions)" in text
+    assert "fraction overturned by scale (of the runs that completed or overturned)" in text
+
+
+def test_fractions_unit():
+    """`_Sweep.fractions_overturned`: over completed + overturned; None where all failed."""
+    from rockjax.cli.sweep import _Sweep
+
+    sw = _Sweep(structures=[None], struct_labels=["s"], records=[], rec_labels=["a", "b", "c"],
+                scales=np.array([1.0, 2.0, 3.0]), tail=0.0, t1=None)
+    sw.results = [{"status": np.array([[0, 2, 0], [1, 0, 3], [2, 3, 2]])}]
+    assert sw.fractions_overturned() == {"s": [0.0, 0.5, None]}
+    assert sw.failed_by_scale() == {"s": [1, 1, 3]}

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import sys
 
-from . import demo, fit, pushover, simulate, spectrum, sweep
+from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
 from ._common import _first_line, _Parser, CLIError, enable_compile_cache, EXIT_USAGE
 
 #: the sub-commands, in the order `rockjax --help` lists them
-COMMANDS = (demo, pushover, simulate, fit, sweep, spectrum)
+COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
 
 
 def _version():

@@ -31,6 +31,7 @@ import numpy as np
 import rockjax
 from rockjax import _plotting
 from rockjax._batch import DEFAULT_TAIL
+from rockjax._fragility import overturned_fraction, USABLE
 from rockjax._records import common_time_step, record_format
 
 from . import _distributed
@@ -423,10 +424,20 @@ class _Sweep:
         return counts
 
     def fractions_overturned(self):
-        """Per structure label, the fraction of records overturned at each scale."""
-        over = rockjax.STATUS["overturned"]
+        """Per structure label, the fraction of records overturned at each scale, among
+        the runs that completed or overturned (failed runs left out, as `rockjax.sweep`);
+        None at a scale where every run failed."""
         return {
-            lab: [float(x) for x in np.mean(res["status"] == over, axis=1)]
+            lab: [None if np.isnan(x) else float(x)
+                  for x in overturned_fraction(res["status"], axis=1)]
+            for lab, res in zip(self.struct_labels, self.results)
+        }
+
+    def failed_by_scale(self):
+        """Per structure label, the failed runs (max_impacts, solver_failure) at each
+        scale: left out of the fractions."""
+        return {
+            lab: [int(k) for k in (~np.isin(res["status"], USABLE)).sum(axis=1)]
             for lab, res in zip(self.struct_labels, self.results)
         }
 
@@ -598,8 +609,12 @@ def _plot_peaks(ax_u, ax_f, xs, order, results, structures, records, u_overturn)
                 ax_u.plot(
                     xs[other[:, ri]], peak[other[:, ri], ri], "s", ms=7, mfc="none", color=color
                 )
-        frac = np.mean(over, axis=1)
-        ax_f.plot(xs, frac, styles[si % 4], marker="o", ms=4, color=f"C{si % 10}", label=lab_s)
+        ax_f.plot(xs, overturned_fraction(status, axis=1), styles[si % 4], marker="o", ms=4,
+                  color=f"C{si % 10}", label=lab_s)
+        if other.any():  # the failed runs, left out of the fraction
+            ax_f.plot(xs, np.mean(other, axis=1), styles[si % 4], marker="s", ms=4, mfc="none",
+                      lw=0.8, color="0.5", label=f"{lab_s}: fraction failed (left out)"
+                      if many else "fraction failed (left out)")
     return any_over, any_other
 
 
@@ -629,7 +644,8 @@ def _peak_legend(ax_u, any_over, any_other, n_lines):
 
 def plot_sweep(scales, results, *, u_overturn, structures, records, title=None):
     """Peak |u| against scale (one line per structure x record; overturned runs as x at
-    u_overturn) and the fraction overturned against scale (per structure).
+    u_overturn) and the fraction overturned against scale (per structure, of the runs that
+    completed or overturned; the fraction that failed, left out, as a grey line).
 
     `results[i]` holds arrays of shape (n_scales, n_records) `peak_u` [m] and `status` for
     structure i. Returns a matplotlib Figure (no pyplot)."""
@@ -645,9 +661,9 @@ def plot_sweep(scales, results, *, u_overturn, structures, records, title=None):
     ax_u.set_ylabel("peak |u| [mm]")
     ax_u.set_title(title or "peak displacement against scale", fontsize=10)
     ax_f.set_ylim(-0.03, 1.03)
-    ax_f.set_ylabel(f"fraction overturned\n(over {len(records)} record(s))")
+    ax_f.set_ylabel(f"fraction overturned (of {len(records)}\nrecord(s), failed runs left out)")
     ax_f.set_xlabel("scale factor on the records")
-    if len(structures) > 1:
+    if len(structures) > 1 or any_other:
         ax_f.legend(fontsize=8)
     for ax in (ax_u, ax_f):
         ax.grid(alpha=0.3)
@@ -680,6 +696,7 @@ def _print_json(args, sweep, counts, fractions):
         "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
         "fraction_overturned": fractions,
+        "failed_by_scale": sweep.failed_by_scale(),
         "warnings": sweep.warnings,
     }
     print(json.dumps(out))
@@ -715,6 +732,8 @@ def _print_inputs(args, sweep):
 def _print_report(args, sweep, counts, fractions):
     n_runs, n_s, n_r = sweep.n_runs, len(sweep.scales), len(sweep.rec_labels)
     n_over = counts["overturned"]
+    failed = {k: v for k, v in counts.items() if rockjax.STATUS[k] not in USABLE and v}
+    n_used = n_runs - sum(failed.values())
     _print_inputs(args, sweep)
     print(
         f"sweep         {sweep.runs}: {len(sweep.structures)} structure(s) x {n_r} record(s) x "
@@ -726,8 +745,16 @@ def _print_report(args, sweep, counts, fractions):
         f"included{procs})"
     )
     print("status        " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
-    print(f"overturned    {n_over} of {n_runs} ({n_over / n_runs:.1%})")
+    share = f"{n_over / n_used:.1%}" if n_used else "-"
+    if failed:
+        left = ", ".join(f"{k} {v}" for k, v in failed.items())
+        print(f"overturned    {n_over} of the {n_used} runs that completed or overturned "
+              f"({share}); {n_runs - n_used} failed runs left out ({left})")
+    else:
+        print(f"overturned    {n_over} of {n_runs} ({share})")
     _print_fraction_table(sweep.scales, sweep.struct_labels, fractions)
+    if failed:
+        _print_failed_table(sweep.scales, sweep.struct_labels, sweep.failed_by_scale())
     print(f"results written to {args.out}")
     if args.plot:
         print(f"plot written to {args.plot}")
@@ -738,7 +765,8 @@ def _print_fraction_table(scales, struct_labels, fractions):
     n_s = len(scales)
     width = max(8, *(len(lab) + 2 for lab in struct_labels))
     print(
-        f"fraction overturned by scale:\n{'scale':>10}"
+        f"fraction overturned by scale (of the runs that completed or overturned):\n"
+        f"{'scale':>10}"
         + "".join(f"{lab:>{width}}" for lab in struct_labels)
     )
     shown = range(n_s) if n_s <= 25 else [*range(12), None, *range(n_s - 12, n_s)]
@@ -748,8 +776,26 @@ def _print_fraction_table(scales, struct_labels, fractions):
             continue
         print(
             f"{scales[i]:>10.4g}"
-            + "".join(f"{fractions[lab][i]:>{width}.3f}" for lab in struct_labels)
+            + "".join(f"{_fraction(fractions[lab][i]):>{width}}" for lab in struct_labels)
         )
+
+
+def _fraction(x):
+    """A fraction in the table: three decimals, '-' where every run failed."""
+    return "-" if x is None else f"{x:.3f}"
+
+
+def _print_failed_table(scales, struct_labels, failed):
+    """Failed runs by scale, one column per structure (the scales with failures only)."""
+    width = max(8, *(len(lab) + 2 for lab in struct_labels))
+    print(
+        "failed runs by scale (max_impacts, solver_failure; left out of the fractions):\n"
+        f"{'scale':>10}" + "".join(f"{lab:>{width}}" for lab in struct_labels)
+    )
+    for i, scale in enumerate(scales):
+        if any(failed[lab][i] for lab in struct_labels):
+            print(f"{scale:>10.4g}" + "".join(f"{failed[lab][i]:>{width}d}"
+                                              for lab in struct_labels))
 
 
 def _read_sweep(args):

@@ -5,8 +5,8 @@ likelihood written here (a dense grid, then Nelder-Mead from its best point, wit
 `log_ndtr`), on simulated sweeps and on Bernoulli data drawn from a known curve. The
 simulated sweep runs four generated records (`rockjax.datasets.synthetic_ground_motion`)
 on the rigid_body model with a bound on impacts that makes some runs fail, so that the
-failed-run rule is exercised on real failures. One test runs the command line on the
-shared real records (`ground_motions_dir`).
+failed-run rule is exercised on real failures. One test runs the command line on three
+shared real records (on three synthetic AT2 files where the shared folder is absent).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import pathlib
 import warnings
 
 import numpy as np
@@ -319,12 +320,28 @@ def _main(argv):
     return rc, out.getvalue(), err.getvalue()
 
 
-def test_cli_json_plot_text_on_real_records(ground_motions_dir, tmp_path, column):
-    """`rockjax fragility` on three real records: --json and --plot, the same fit as
-    rockjax.sweep + rockjax.fragility in Python, the text report, and a sweep too weak to
-    overturn anything refused in one line."""
+@pytest.fixture(scope="module")
+def cli_records(tmp_path_factory):
+    """Three real records from the shared folder; without it (a fresh clone), three
+    synthetic AT2 files in g, so that the CLI is checked either way."""
+    from conftest import shared_ground_motions
+    from test_records import synthetic, write_at2
+
     names = ["IELC180.AT2", "RSN1106_KOBE_KJM000.AT2", "RSN753_LOMAP_CLS000.AT2"]
-    paths = [str(ground_motions_dir / n) for n in names]
+    d = shared_ground_motions()
+    if all((d / n).is_file() for n in names):
+        return [str(d / n) for n in names]
+    tmp = tmp_path_factory.mktemp("fragility_records")
+    return [str(write_at2(tmp / f"synthetic{i}.AT2",
+                          synthetic(seed=i, dt=0.01, duration=12.0, pga=3.07)))
+            for i in range(3)]
+
+
+def test_cli_json_plot_text_on_real_records(cli_records, tmp_path, column):
+    """`rockjax fragility` on three real records (synthetic ones in a fresh clone): --json
+    and --plot, the same fit as rockjax.sweep + rockjax.fragility in Python, the text
+    report, and a sweep too weak to overturn anything refused in one line."""
+    paths = cli_records
     base = ["fragility", *(a for p in paths for a in ("--record", p)), "--model", "rigid_body",
             "--t1", "12", "--bootstrap", "200"]
     png = tmp_path / "fragility.png"
@@ -337,7 +354,7 @@ def test_cli_json_plot_text_on_real_records(ground_motions_dir, tmp_path, column
     assert sw["n_runs"] == 30 and sum(sw["status_counts"].values()) == 30
     assert f["n_used"] + sum(f["n_failed"].values()) == 30 and 0 < f["n_exceeded"] < 30
     assert f["median_ci"][0] < f["median"] < f["median_ci"][1] and f["beta"] > 0
-    assert sw["records"] == ["IELC180", "RSN1106_KOBE_KJM000", "RSN753_LOMAP_CLS000"]
+    assert sw["records"] == [pathlib.Path(p).stem for p in paths]
     assert png.stat().st_size > 10_000 and d["plot"] == str(png)
     assert "rk4 batch" not in err  # no progress bar with --json
     ref = rockjax.fragility(

@@ -86,45 +86,16 @@ def _hermite(a0, m0, a1, m1, s):
 
 
 @njit(inline="always")
-def _root_bracket(a0, m0, a1, m1):
-    """(s_l, value there): the left end of the root's bracket (`_hermite.root_bracket`):
-    the interpolant's maximum for a condition leaving its surface (a0 <= 0 < m0)."""
-    if not (a0 <= 0 and m0 > 0):
-        return 0.0, a0
-    A = 3 * (2 * (a0 - a1) + m0 + m1)
-    Bq = -6 * (a0 - a1) - 4 * m0 - 2 * m1
-    disc = Bq * Bq - 4 * A * m0
-    root = np.sqrt(disc) if disc > 0 else 0.0
-    q = -0.5 * (Bq + (1.0 if Bq >= 0 else -1.0) * root)
-    r1 = m0 / q if q != 0 else 2.0
-    r2 = q / A if A != 0 else 2.0
-    r1 = r1 if 0 < r1 < 1 else 2.0
-    r2 = r2 if 0 < r2 < 1 else 2.0
-    s = min(r1, r2)
-    s = s if s < 1 else 0.5
-    g, _ = _hermite(a0, m0, a1, m1, s)
-    return (s, g) if g > 0 else (0.0, a0)
-
-
-@njit(inline="always")
-def _root_estimate(a0, m0, a1, m1):
-    """The linear estimate of the root from its bracket (`_hermite.root_estimate`)."""
-    sl, gl = _root_bracket(a0, m0, a1, m1)
-    den = gl - a1
-    return sl + (1 - sl) * (gl / den if den != 0 else 1.0)
-
-
-@njit(inline="always")
 def _hermite_root(a0, m0, a1, m1):
     """The s in [0, 1] where the Hermite interpolant vanishes (`_hermite.hermite_root`)."""
-    lo, g_lo = _root_bracket(a0, m0, a1, m1)
-    den = g_lo - a1
-    s = lo + (1 - lo) * (0.5 if den == 0 else g_lo / den)
+    den = a0 - a1
+    s = 0.5 if den == 0 else a0 / den
     s = min(max(s, 0.0), 1.0)
+    lo = 0.0
     hi = 1.0
     for _ in range(4):
         g, der = _hermite(a0, m0, a1, m1, s)
-        if g * g_lo > 0:
+        if g * a0 > 0:
             lo = s
         else:
             hi = s
@@ -180,7 +151,8 @@ def _locate(g0, dg0, g1, dg1, f, h):
     best = 3.0
     which = 0
     for i in range(3):
-        lin = _root_estimate(g0[i], dg0[i] * h, g1[i], dg1[i] * h) if f[i] else 2.0
+        den = g0[i] - g1[i]
+        lin = (g0[i] / (den if den != 0 else 1.0)) if f[i] else 2.0
         if lin < best:
             best = lin
             which = i

@@ -37,11 +37,14 @@ def _top(a0, m0, a1, m1):
     return jnp.where(s < 1, s, 0.5)
 
 
-def root_bracket(a0, m0, a1, m1):
-    """(left end s_l, value there) of the bracket of the interpolant's root. A condition
-    resting on its surface (a0 <= 0) and leaving it to the positive side (m0 > 0), as right
-    after a jump, crosses zero later (a1 < 0): its root is bracketed from the interpolant's
-    maximum, not from s = 0 (where a root at the start would repeat the jump)."""
+def root_bracket(a0, m0, a1, m1, grazing=True):
+    """(left end s_l, value there) of the bracket of the interpolant's root. With
+    `grazing`, a condition resting on its surface (a0 <= 0) and leaving it to the positive
+    side (m0 > 0), as right after a jump, crosses zero later (a1 < 0): its root is
+    bracketed from the interpolant's maximum, not from s = 0 (where a root at the start
+    would repeat the jump). Without it (the SDOF models) the bracket starts at s = 0."""
+    if not grazing:
+        return jnp.zeros_like(a0), a0
     grazing = (a0 <= 0) & (m0 > 0)
     s_top = _top(a0, m0, a1, m1)
     g_top, _ = hermite(a0, m0, a1, m1, s_top)
@@ -49,14 +52,14 @@ def root_bracket(a0, m0, a1, m1):
     return jnp.where(use, s_top, 0.0), jnp.where(use, g_top, a0)
 
 
-def root_estimate(a0, m0, a1, m1):
+def root_estimate(a0, m0, a1, m1, grazing=True):
     """The linear estimate of the root in [0, 1] from its bracket (for ordering events)."""
-    sl, gl = root_bracket(a0, m0, a1, m1)
+    sl, gl = root_bracket(a0, m0, a1, m1, grazing)
     den = gl - a1
     return sl + (1 - sl) * jnp.where(den != 0, gl / jnp.where(den != 0, den, 1.0), 1.0)
 
 
-def hermite_root(a0, m0, a1, m1, iters=4):
+def hermite_root(a0, m0, a1, m1, iters=4, grazing=True):
     """The s in [0, 1] where the Hermite interpolant is 0 (a0 >= 0 >= a1 bracket it, or a
     condition leaving its surface at s = 0 comes back: `root_bracket`).
 
@@ -64,7 +67,7 @@ def hermite_root(a0, m0, a1, m1, iters=4):
     plain Newton steps so that the root is converged and carries the implicit-function
     derivative.
     """
-    lo, g_lo = root_bracket(a0, m0, a1, m1)
+    lo, g_lo = root_bracket(a0, m0, a1, m1, grazing)
     den = g_lo - a1
     safe = jnp.where(den != 0, den, 1.0)
     s = jnp.clip(lo + (1 - lo) * jnp.where(den != 0, g_lo / safe, 0.5), 0.0, 1.0)

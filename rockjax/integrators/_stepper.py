@@ -152,9 +152,14 @@ def locate(model, cfg, s, y, mode, tau, h, a0, da, tr, fire):
     is then located on its cubic Hermite interpolant (one root find, not one per
     condition: the batch pays for every piece any member needs).
     """
-    lin = jnp.where(fire, root_estimate(tr.g0, tr.dg0 * h, tr.g1, tr.dg1 * h), 2.0)
+    # a condition that leaves its surface at a jump and crosses it again later in the
+    # step (rigid_body: a landing, then the lift-off on the other corner) is located at
+    # the crossing, where the model asks for it (`grazing_roots`)
+    gr = model.grazing_roots
+    lin = jnp.where(fire, root_estimate(tr.g0, tr.dg0 * h, tr.g1, tr.dg1 * h, gr), 2.0)
     which = jnp.argmin(lin).astype(jnp.int32)
-    root = hermite_root(tr.g0[which], tr.dg0[which] * h, tr.g1[which], tr.dg1[which] * h)
+    root = hermite_root(tr.g0[which], tr.dg0[which] * h, tr.g1[which], tr.dg1[which] * h,
+                        grazing=gr)
     hp = root * h
     ye, _ = rk_step(model, s, y, mode, tau, hp, a0, da, cfg)
     if cfg.method == "dopri5":

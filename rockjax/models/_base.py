@@ -101,6 +101,14 @@ class AbstractRockingModel(eqx.Module):
         SDOF kinematics), for output times between grid points; default None."""
         return None
 
+    #: whether a condition that starts on its surface right after a jump and leaves it may
+    #: fire again later in the same step as a different event (the stepper then locates its
+    #: root past the interpolant's maximum, not at the jump). True for `RigidBody`, whose
+    #: landing condition crosses zero again at the lift-off on the other corner; the SDOF
+    #: models keep False: their condition's return is the next impact at u = 0 of a
+    #: settling rigid block, collapsed onto the jump when it comes within one step
+    grazing_roots = False
+
     def default_max_pieces(self) -> int:
         """Event-located pieces the fixed-step stepper allows per step (default 4)."""
         return 4

@@ -167,6 +167,9 @@ class RigidBody(AbstractRockingModel):
     settled. The impact rule `impact` of `get_model` does not apply.
     """
 
+    #: a landing and the lift-off on the other corner may share a step (stiff springs)
+    grazing_roots = True
+
     def default_max_pieces(self) -> int:
         # a landing and the next lift-off may share a step when theta_u is small: 4
         # pieces hold landing, lift-off and a third event (as for the SDOF models)

@@ -323,8 +323,8 @@ def _failed(status):
 
 
 def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact="paper",
-                         rtol=1e-3, r=None, n_scan=48, max_ratio=1000.0, t_free=None, substeps=4, devices=None,
-                         progress=None) -> OverturningSpectrum:
+                         rtol=1e-3, r=None, n_scan=48, max_ratio=1000.0, t_free=None,
+                         substeps=4, devices=None, progress=None) -> OverturningSpectrum:
     r"""The lowest amplitude [m/s²] of a pulse that overturns `structure`, per period.
 
     **Arguments:**

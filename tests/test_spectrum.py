@@ -44,7 +44,7 @@ class Block:
         self.M = float(s.m_e + s.m_b)
         self.g = float(s.g)
         self.W = self.M * self.g
-        self.Hc = float((s.m_e * s.H_e + s.m_b * s.H_b)) / self.M
+        self.Hc = float(s.m_e * s.H_e + s.m_b * s.H_b) / self.M
         self.R = math.hypot(float(s.B), self.Hc)
         self.alpha = math.atan2(float(s.B), self.Hc)
         self.I = float(s.I_O)

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import pulses as _pulses
-from ._batch import _devices, _progress, _stepper_chunk_jit
+from ._batch import _devices, _Plan, _progress, _run_chunks
 from ._response import STATUS
 from ._structure import FIELDS, RockingStructure
 from .integrators import StepperConfig
@@ -133,6 +133,11 @@ class OverturningSpectrum:
         return ax
 
 
+def frequency_parameter(structure) -> float:
+    """Housner's frequency parameter $p = \\sqrt{W R_c / I_O}$ [rad/s]."""
+    return math.sqrt(float(structure.W * structure.R_c / structure.I_O))
+
+
 def _check_periods(periods):
     T = np.asarray(periods, dtype=float)
     if T.ndim == 0:
@@ -166,38 +171,23 @@ def _check_options(rtol, n_scan, max_ratio, t_free):
 @dataclasses.dataclass(frozen=True)
 class _Runner:
     """Runs of the spectrum's pulses: period i's pulse is row i of `table`, sampled every
-    `dt[i]` [s], and its run ends at `t_end[i]` [s]; every call runs in chunks of
-    `chunk` members (one compiled program)."""
+    `dt[i]` [s], and its run ends at `t_end[i]` [s]; every call goes through
+    `simulate_batch`'s chunk loop (`plan.chunk` members a call: one compiled program), each
+    member on its own grid step."""
 
-    model: object
+    plan: _Plan
     shared: dict
     table: jnp.ndarray
     lengths: jnp.ndarray
     dt: np.ndarray
     t_end: np.ndarray
-    cfg: StepperConfig
-    n_devices: int
-    chunk: int
 
     def __call__(self, idx, amp):
         """(status, n_impacts) of the runs of period `idx` at amplitude `amp` [m/s²]."""
-        N = len(idx)
-        status, impacts = [], []
-        dtype = self.table.dtype
-        for lo in range(0, N, self.chunk):
-            sel = np.minimum(np.arange(lo, lo + self.chunk), N - 1)
-            i = idx[sel]
-            batched = {"record": jnp.asarray(i, jnp.int32),
-                       "scale": jnp.asarray(amp[sel], dtype),
-                       "dt_rec": jnp.asarray(self.dt[i], dtype),
-                       "t_end": jnp.asarray(self.t_end[i], dtype)}
-            out = _stepper_chunk_jit(self.model, batched, self.shared, self.table,
-                                     self.lengths, jnp.asarray(0.0, dtype), self.cfg,
-                                     self.n_devices)
-            n = min(self.chunk, N - lo)
-            status.append(np.asarray(out["status"])[:n])
-            impacts.append(np.asarray(out["n_impacts"])[:n])
-        return np.concatenate(status), np.concatenate(impacts)
+        values = {"record": idx, "scale": amp, "dt_rec": self.dt[idx], "t_end": self.t_end[idx]}
+        out = _run_chunks(self.plan, len(idx), list(values), values, self.shared,
+                          (self.table, self.lengths), None, self.table.dtype, False)
+        return out["status"], out["n_impacts"]
 
 
 def _runner(structure, model, kind, T, t_free, substeps, devices, n_members, r):
@@ -216,16 +206,17 @@ def _runner(structure, model, kind, T, t_free, substeps, devices, n_members, r):
     t_end = T + t_free
     n_steps = int(np.max(np.ceil(t_end / dt - 1e-9)))
     cfg = StepperConfig(method="rk4", substeps=substeps, n_steps=n_steps, forced=True,
-                        full=False, max_impacts=_MAX_IMPACTS, max_pieces=model.default_max_pieces(),
-                        rtol=1e-8, atol=1e-10)
+                        full=False, max_impacts=_MAX_IMPACTS,
+                        max_pieces=model.default_max_pieces(), rtol=1e-8, atol=1e-10)
     n_dev = _devices(devices)
-    chunk = n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev)
+    plan = _Plan(model=model, method="rk4", free=False, dt_rec=float(dt.max()),
+                 t1=float(t_end.max()), grid=None, cfg=cfg, n_devices=n_dev,
+                 chunk=n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev))
     shared = {k: jnp.asarray(getattr(structure, k), dtype) for k in FIELDS}
     shared.update(u0=jnp.zeros((), dtype), v0=jnp.zeros((), dtype),
                   r=jnp.asarray(structure.restitution if r is None else r, dtype))
-    return _Runner(model=model, shared=shared, table=jnp.asarray(table, dtype),
-                   lengths=jnp.asarray(lengths, jnp.int32), dt=dt, t_end=t_end, cfg=cfg,
-                   n_devices=n_dev, chunk=chunk)
+    return _Runner(plan=plan, shared=shared, table=jnp.asarray(table, dtype),
+                   lengths=jnp.asarray(lengths, jnp.int32), dt=dt, t_end=t_end)
 
 
 _BRACKET, _UP, _DOWN, _DONE, _NONE = range(5)
@@ -358,7 +349,7 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact
     if not (isinstance(substeps, int) and substeps >= 1):
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
     mdl = get_model(model, impact)
-    p = math.sqrt(float(structure.W * structure.R_c / structure.I_O))
+    p = frequency_parameter(structure)
     gta = float(structure.g * structure.B / structure.H_c)
     t_free = 20.0 / p if t_free is None else float(t_free)
     x = 1.0 / (p * T) if kind == "rectangular" else 2 * np.pi / (p * T)

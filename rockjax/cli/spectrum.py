@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 import rockjax
+from rockjax._spectrum import frequency_parameter
 
 from ._common import (
     _check_out_dir,
@@ -84,7 +85,7 @@ def add_parser(subparsers):
 def _periods(args, s):
     if args.periods is not None:
         return np.asarray(args.periods)
-    p = math.sqrt(float(s.W * s.R_c / s.I_O))
+    p = frequency_parameter(s)
     x = np.asarray(args.ratios)
     return x / p if args.pulse == "rectangular" else 2 * math.pi / (p * x)
 

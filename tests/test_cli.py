@@ -172,3 +172,25 @@ def test_cli_errors_one_line_no_traceback(tmp_path, args, files, match):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1, r.stderr
     assert match in lines[0]
+
+
+def test_in_process_main_leaves_the_jax_configuration_alone(monkeypatch, capsys):
+    """`main([...])` from Python does not turn on the persistent compilation cache of the
+    calling process; the command itself (argv None) and `compile_cache=True` do."""
+    import jax
+
+    import rockjax.cli as cli
+
+    before = jax.config.jax_compilation_cache_dir
+    assert main(["pushover", "--json", "--points", "50"]) == 0  # the real function
+    assert jax.config.jax_compilation_cache_dir == before
+    calls = []
+    monkeypatch.setattr(cli, "enable_compile_cache", lambda disabled=False: calls.append(disabled))
+    assert main(["pushover", "--json", "--points", "50"]) == 0 and calls == []
+    assert main(["pushover", "--json", "--points", "50"], compile_cache=True) == 0
+    assert main(["--no-compile-cache", "pushover", "--json", "--points", "50"],
+                compile_cache=True) == 0
+    monkeypatch.setattr("sys.argv", ["rockjax", "pushover", "--json", "--points", "50"])
+    assert main() == 0
+    assert calls == [False, True, False]
+    capsys.readouterr()

@@ -50,14 +50,25 @@ def build_parser():
     return p
 
 
-def main(argv=None):
+def main(argv=None, *, compile_cache=None):
+    """Run the `rockjax` command with the arguments `argv` (default: `sys.argv[1:]`) and
+    return its exit code.
+
+    `compile_cache`: whether to turn on JAX's persistent compilation cache for this
+    process (`_common.enable_compile_cache`). The default, None, turns it on only when
+    `argv` is None, i.e. when this process *is* the command (the `rockjax` script,
+    `python -m rockjax.cli`): a call `main([...])` from a notebook, a script or a test
+    leaves the caller's JAX configuration as it is. `--no-compile-cache` and
+    `ROCKJAX_COMPILE_CACHE=off` turn it off in any case."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_USAGE
-    # before any computation: a later run of the same programs reads them back compiled
-    enable_compile_cache(disabled=not args.compile_cache)
+    if compile_cache is None:
+        compile_cache = argv is None
+    if compile_cache:  # before any computation: a later run reads the programs back
+        enable_compile_cache(disabled=not args.compile_cache)
     try:
         return args.func(args)
     except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:

@@ -37,6 +37,18 @@ os.environ["ROCKJAX_COMPILE_CACHE"] = _COMPILE_CACHE
 def pytest_sessionfinish(session, exitstatus):
     shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
 
+
+@pytest.fixture(autouse=True)
+def _no_process_wide_compile_cache():
+    """No test leaves JAX's persistent compilation cache on in the test process itself.
+    With it on, every later compile of the worker also serialises its executable to disk,
+    and XLA:CPU's serialisation has crashed long-lived workers (segfaults inside
+    `put_executable_and_time` and `backend_compile_and_load`, twice in full runs of the
+    suite on the 2-core machine). The command line's cache is tested in subprocesses."""
+    yield
+    assert jax.config.jax_compilation_cache_dir is None, (
+        "this test turned on JAX's persistent compilation cache in the test process")
+
 #: The tests' stand-in for El Centro 1940 NS (IELC180): `rockjax.datasets.
 #: synthetic_ground_motion` with El Centro's length, step and PGA (40 s, 0.01 s,
 #: 3.068 m/s² = 0.3129 g). Seed 20 is chosen for physics like El Centro's on the Table 1

@@ -151,8 +151,7 @@ def test_bad_joint_input_names_the_parameter(traces, case, match):
         fit_decay(*args, **kw)
 
 
-def test_cli_fits_several_files(joint, traces, tmp_path, monkeypatch, capsys):
-    monkeypatch.setenv(_common.COMPILE_CACHE_ENV, "off")  # no process-wide cache from here
+def test_cli_fits_several_files(joint, traces, tmp_path, capsys):
     paths = []
     for i, tr in enumerate(traces):
         p = tmp_path / f"tr{i}.csv"

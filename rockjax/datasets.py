@@ -1,12 +1,10 @@
 """On-demand access to the 1940 El Centro NS ground-motion record.
 
-Provenance
-----------
-The record is ``IELC180.AT2``: the 1940 Imperial Valley earthquake (19 May 1940) recorded
-at El Centro Array #9 (USGS station 117), 180 component (north-south), from the pre-NGA
-PEER Strong Motion Database, processed by Pacific Engineering & Analysis (0.2-15 Hz
-band-pass). It has 4000 samples at dt = 0.01 s (40 s) in units of g, PGA 0.3129 g
-(3.068 m/s²). The underlying accelerogram is a USGS record distributed by PEER.
+**Provenance.** The record is ``IELC180.AT2``: the 1940 Imperial Valley earthquake (19 May
+1940) recorded at El Centro Array #9 (USGS station 117), 180 component (north-south), from
+the pre-NGA PEER Strong Motion Database, processed by Pacific Engineering & Analysis
+(0.2-15 Hz band-pass). It has 4000 samples at dt = 0.01 s (40 s) in units of g, PGA
+0.3129 g (3.068 m/s²). The underlying accelerogram is a USGS record distributed by PEER.
 
 The file is fetched from the OpenSees repository (``OpenSees/OpenSees``, path
 ``Workshops/OpenSeesDays/IELC180.AT2``, commit
@@ -16,19 +14,19 @@ modification and distribution for educational, research and non-profit purposes 
 a noncommercial basis. For that reason rockjax never commits or ships the record: it is
 downloaded into a user cache on first use, or read from a local copy that you provide.
 
-Resolution order (see :func:`el_centro_path`):
+Resolution order (see `el_centro_path`):
 
 1. the ``local=`` argument (the file, or a directory containing ``IELC180.AT2``);
 2. the environment variable ``ROCKJAX_EL_CENTRO`` (same meaning);
 3. the cache file ``cache_dir() / "IELC180.AT2"``;
-4. a download from :data:`EL_CENTRO_URL` into the cache (only with ``download=True``).
+4. a download from `EL_CENTRO_URL` into the cache (only with ``download=True``).
 
 The cache directory is ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax``, else
 ``~/.cache/rockjax``.
 
 The files that rockjax does ship (the repository's ``data/`` folder, installed as the
 package ``rockjax._data``: the Table 1 structure and the synthetic decay traces) are found
-with :func:`packaged_data_path`.
+with `packaged_data_path`.
 """
 
 from __future__ import annotations
@@ -51,6 +49,7 @@ __all__ = [
     "el_centro",
     "el_centro_path",
     "packaged_data_path",
+    "synthetic_ground_motion",
 ]
 
 EL_CENTRO_URL = (
@@ -75,11 +74,9 @@ _HOW_TO_POINT = (
 def cache_dir() -> pathlib.Path:
     """Directory where downloaded records are cached.
 
-    Returns
-    -------
-    pathlib.Path
-        ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax``, else
-        ``~/.cache/rockjax``. The directory is not created here.
+    **Returns:** a `pathlib.Path`: ``$ROCKJAX_CACHE`` if set, else
+    ``$XDG_CACHE_HOME/rockjax``, else ``~/.cache/rockjax``. The directory is not created
+    here.
     """
     env = os.environ.get(_ENV_CACHE)
     if env:
@@ -130,30 +127,24 @@ def el_centro_path(
 ) -> pathlib.Path:
     """Path to a verified copy of the El Centro record ``IELC180.AT2``.
 
-    Parameters
-    ----------
-    local : str or os.PathLike, optional
-        The file ``IELC180.AT2`` or a directory containing it. When omitted, the
-        environment variable ``ROCKJAX_EL_CENTRO`` is used in the same way, then the
-        cache file ``cache_dir() / "IELC180.AT2"``.
-    download : bool, default True
-        Download the record into the cache (about 61 kB, timeout 30 s) if it is not found
-        locally. With ``False`` a missing record raises FileNotFoundError.
+    **Arguments:**
 
-    Returns
-    -------
-    pathlib.Path
-        Path of the record; its SHA-256 equals :data:`EL_CENTRO_SHA256`.
+    - `local` (str or os.PathLike, optional): the file ``IELC180.AT2`` or a directory
+      containing it. When omitted, the environment variable ``ROCKJAX_EL_CENTRO`` is used
+      in the same way, then the cache file ``cache_dir() / "IELC180.AT2"``.
+    - `download` (default True): download the record into the cache (about 61 kB, timeout
+      30 s) if it is not found locally. With ``False`` a missing record raises
+      FileNotFoundError.
 
-    Raises
-    ------
-    FileNotFoundError
-        If `local` (or ``ROCKJAX_EL_CENTRO``) names a missing file, or if the record is
-        not cached and ``download=False``.
-    RuntimeError
-        If the download fails.
-    ValueError
-        If the file used (local, cached or downloaded) does not have the expected SHA-256.
+    **Returns:** the `pathlib.Path` of the record; its SHA-256 equals `EL_CENTRO_SHA256`.
+
+    **Raises:**
+
+    - `FileNotFoundError`: if `local` (or ``ROCKJAX_EL_CENTRO``) names a missing file, or if
+      the record is not cached and ``download=False``.
+    - `RuntimeError`: if the download fails.
+    - `ValueError`: if the file used (local, cached or downloaded) does not have the
+      expected SHA-256.
     """
     if local is not None:
         return _resolve_local(local, "the local= argument")
@@ -193,18 +184,15 @@ def el_centro_path(
 def el_centro(*, local: str | os.PathLike[str] | None = None, download: bool = True) -> Record:
     """The 1940 El Centro NS record (Imperial Valley, El Centro Array #9, 180).
 
-    Parameters
-    ----------
-    local : str or os.PathLike, optional
-        The file ``IELC180.AT2`` or a directory containing it; see :func:`el_centro_path`.
-    download : bool, default True
-        Download the record into the cache if it is not available locally.
+    **Arguments:**
 
-    Returns
-    -------
-    Record
-        4000 samples at dt = 0.01 s (40 s), accelerations in m/s² converted from g
-        (PGA 3.068 m/s² = 0.3129 g).
+    - `local` (str or os.PathLike, optional): the file ``IELC180.AT2`` or a directory
+      containing it; see `el_centro_path`.
+    - `download` (default True): download the record into the cache if it is not available
+      locally.
+
+    **Returns:** a `Record`: 4000 samples at dt = 0.01 s (40 s), accelerations in m/s²
+    converted from g (PGA 3.068 m/s² = 0.3129 g).
     """
     return read_record(el_centro_path(local=local, download=download), format="at2")
 
@@ -234,21 +222,23 @@ def synthetic_ground_motion(
     4. a_i e(t_i), scaled so that max |a| = `pga` exactly (a_0 = 0: the motion starts
        from rest).
 
-    Parameters
-    ----------
-    duration : float, default 40.0
-        Length [s]; the last sample is at t = duration (rounded to the grid).
-    dt : float, default 0.01
-        Time step [s].
-    pga : float, default 3.0
-        Peak ground acceleration [m/s²] (El Centro 1940 NS: 3.068).
-    seed : int, default 0
-        Seed of the Gaussian noise; each seed is a different record.
+    **Arguments:**
 
-    Returns
-    -------
-    Record
-        ``source = "synthetic (seed N)"`` and a description that says SYNTHETIC.
+    - `duration` (default 40.0): length [s]; the last sample is at t = duration (rounded to
+      the grid).
+    - `dt` (default 0.01): time step [s].
+    - `pga` (default 3.0): peak ground acceleration [m/s²] (El Centro 1940 NS: 3.068).
+    - `seed` (default 0): seed of the Gaussian noise; each seed is a different record.
+
+    **Returns:** a `Record` with ``source = "synthetic (seed N)"`` and a description that
+    says SYNTHETIC.
+
+    **Example:**
+
+    ```python
+    motion = rockjax.datasets.synthetic_ground_motion(duration=4.0, dt=0.01, pga=3.0)
+    motion.npts, rockjax.pga(motion)   # 401 samples, 3.0 m/s²
+    ```
     """
     import numpy as np
 
@@ -283,22 +273,18 @@ def synthetic_ground_motion(
 def packaged_data_path(name: str):
     """The file `name` shipped with rockjax (the repository's ``data/`` folder).
 
-    Parameters
-    ----------
-    name : str
-        A plain file name, e.g. ``"mcmanus_column.toml"`` or ``"synthetic_decay_noisy.csv"``.
+    **Arguments:**
 
-    Returns
-    -------
-    importlib.resources.abc.Traversable or pathlib.Path
-        The file in the installed package ``rockjax._data``, else (a source checkout) in
-        ``data/`` next to the ``rockjax`` package. It is not checked to exist: use
-        ``.is_file()``; open it with ``.open()``.
+    - `name`: a plain file name, e.g. ``"mcmanus_column.toml"`` or
+      ``"synthetic_decay_noisy.csv"``.
 
-    Raises
-    ------
-    ValueError
-        If `name` is not a plain file name (empty, a directory part, ``.`` or ``..``).
+    **Returns:** an `importlib.resources.abc.Traversable` or a `pathlib.Path`: the file in
+    the installed package ``rockjax._data``, else (a source checkout) in ``data/`` next to
+    the ``rockjax`` package. It is not checked to exist: use ``.is_file()``; open it with
+    ``.open()``.
+
+    **Raises:** `ValueError` if `name` is not a plain file name (empty, a directory part,
+    ``.`` or ``..``).
     """
     if not isinstance(name, str) or name in ("", ".", "..") or any(c in name for c in "/\\"):
         raise ValueError(f"packaged_data_path: expected a plain file name, got {name!r}")

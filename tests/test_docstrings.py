@@ -12,6 +12,7 @@ and length (`rockjax.datasets.synthetic_ground_motion`), written as PEER AT2 fil
 from __future__ import annotations
 
 import argparse
+import doctest
 import importlib
 import inspect
 import re
@@ -31,6 +32,7 @@ MODULES = ("rockjax.models", "rockjax.integrators", "rockjax.datasets", "rockjax
            "rockjax", "identification")
 
 BLOCK = re.compile(r"^[ \t]*```python[ \t]*\n(.*?)^[ \t]*```", re.S | re.M)
+DOCTEST = re.compile(r"^[ \t]*>>> ", re.M)
 
 #: the records that docstring examples read by file name: (dt [s], number of samples)
 EXAMPLE_RECORDS = {"IELC180.AT2": (0.01, 4000), "elCentro.AT2": (0.02, 1559)}
@@ -89,15 +91,15 @@ def _methods(cls):
 
 
 def docstring_examples():
-    """[(qualified name, [code, ...])] for every public docstring with ```python blocks,
-    methods of public classes included."""
+    """[(qualified name, docstring)] for every public docstring with an example (```python
+    blocks or `>>>` doctests), methods of public classes included."""
     out = []
     for qual, obj in public_objects().items():
         docs = [(qual, own_doc(obj))]
         if inspect.isclass(obj):
             docs += [(f"{qual}.{n}", f.__doc__ or "") for n, f in _methods(obj)]
-        out += [(q, BLOCK.findall(inspect.cleandoc(d))) for q, d in docs]
-    return [(q, blocks) for q, blocks in out if blocks]
+        out += [(q, inspect.cleandoc(d)) for q, d in docs]
+    return [(q, d) for q, d in out if BLOCK.search(d) or DOCTEST.search(d)]
 
 
 EXAMPLES = docstring_examples()
@@ -139,8 +141,10 @@ def example_folder(tmp_path_factory):
     return folder
 
 
-@pytest.mark.parametrize("blocks", [b for _, b in EXAMPLES], ids=[q for q, _ in EXAMPLES])
-def test_docstring_example_runs(blocks, request, example_folder, monkeypatch):
+@pytest.mark.parametrize("doc", [d for _, d in EXAMPLES], ids=[q for q, _ in EXAMPLES])
+def test_docstring_example_runs(doc, request, example_folder, monkeypatch):
+    """Every ```python block of the docstring runs, in order, in one namespace; `>>>`
+    examples run as doctests (their printed output checked)."""
     monkeypatch.chdir(example_folder)
     monkeypatch.setenv("ROCKJAX_CACHE", str(example_folder / "cache"))
     el = example_folder / "IELC180.AT2"
@@ -150,8 +154,15 @@ def test_docstring_example_runs(blocks, request, example_folder, monkeypatch):
         monkeypatch.setattr(datasets, "el_centro", lambda **kw: rockjax.read_record(el))
     ns = {"rockjax": rockjax, "identification": identification, "np": np,
           "jax": importlib.import_module("jax"), "jnp": importlib.import_module("jax.numpy")}
-    for i, code in enumerate(blocks, start=1):
-        exec(compile(code, f"{request.node.callspec.id}, example {i}", "exec"), ns)
+    name = request.node.callspec.id
+    for i, code in enumerate(BLOCK.findall(doc), start=1):
+        exec(compile(code, f"{name}, example {i}", "exec"), ns)
+    if DOCTEST.search(doc):
+        test = doctest.DocTestParser().get_doctest(doc, dict(ns), name, None, 0)
+        runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+        out = []
+        runner.run(test, out=out.append)
+        assert runner.failures == 0, "".join(out)
 
 
 def documented_objects():

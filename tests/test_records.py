@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rockjax import datasets
-from rockjax._records import common_time_step, G_STANDARD, on_grid, read_record, Record
+from rockjax import common_time_step, datasets, G_STANDARD, read_record, Record, UNITS
+from rockjax._records import on_grid  # no public name
 
 # file -> (read_record kwargs, dt [s], npts, PGA [m/s^2], units_in_file, units_source),
 # from PROVENANCE.md
@@ -333,11 +333,77 @@ def test_at2_bad_npts_line(tmp_path):
         read_record(path)
 
 
-@pytest.mark.parametrize("units", ["cm/s2", "gal", "ft/s2", ""])
+@pytest.mark.parametrize("units", ["ft/s2", "cm/s3", "mm", "s", ""])
 def test_unknown_units(tmp_path, units):
+    """An argument that is not a unit of acceleration is refused naming it and listing the
+    units a record may be in (cm/s2 and gal, refused before issue 23, are read now)."""
     path = write(tmp_path, "u.dat", "0.0 0.1\n0.01 0.2\n")
-    with pytest.raises(ValueError, match=r"unknown units="):
+    with pytest.raises(ValueError, match=r"unknown units=") as info:
         read_record(path, units=units)
+    assert f"units={units!r}" in str(info.value)
+    assert "g, m/s2, cm/s2, gal, mm/s2, in/s2" in str(info.value)
+
+
+# (units given, header text stating them or None, factor to m/s2)
+SI_UNITS = [
+    ("m/s2", "Accel[m/s2]", 1.0),
+    ("cm/s2", "Accel[cm/s2]", 0.01),
+    ("cm/sec/sec", "ACCELERATION IN UNITS OF CM/SEC/SEC", 0.01),
+    ("gal", "Accel[gal]", 0.01),
+    ("Gal", "Acceleration (Gal)", 0.01),
+    ("mm/s2", "a [mm/s^2]", 1e-3),
+    ("g", "Accel[g]", G_STANDARD),
+]
+
+
+@pytest.mark.parametrize("given, header, size", SI_UNITS)
+def test_records_in_other_units_give_the_same_si_record(tmp_path, given, header, size):
+    """One record written in m/s2, cm/s2, gal, mm/s2 and g reads back as the same SI record,
+    whether the units come from the header or from units= (issue 23)."""
+    rec = synthetic(seed=3, duration=1.0)
+    vals = np.asarray(rec.accel) / size
+    body = "\n".join(f"{i * rec.dt:.6f} {v:.12e}" for i, v in enumerate(vals)) + "\n"
+    stated = write(tmp_path, "stated.dat", f"Time[s] {header}\n" + body)
+    bare = write(tmp_path, "bare.dat", body)
+    from_header = read_record(stated)
+    from_arg = read_record(bare, units=given)
+    canonical = UNITS.normalize(given, "acceleration")
+    assert (from_header.units_in_file, from_header.units_source) == (canonical, "file header")
+    assert (from_arg.units_in_file, from_arg.units_source) == (canonical, "given")
+    for got in (from_header, from_arg):
+        np.testing.assert_allclose(got.accel, rec.accel, rtol=1e-11, atol=1e-14)
+    assert read_record(stated, units=given).units_source == "file header"  # agreeing: fine
+
+
+def test_header_units_win_and_a_contradicting_argument_names_both(tmp_path):
+    """A header in gal read with units='m/s2' is refused naming both; units of the same
+    size in another spelling (cm/s2 for gal) agree, and the header's name is kept."""
+    path = write(tmp_path, "gal.dat", "Time[s] Accel[gal]\n0 1.0\n0.01 2.0\n0.02 -3.0\n")
+    with pytest.raises(ValueError, match=r"gal\.dat: the file states units gal \('Accel\[gal\]' "
+                                         r"in its header\) but units='m/s2' was given"):
+        read_record(path, units="m/s2")
+    rec = read_record(path, units="cm/s^2")
+    assert rec.units_in_file == "gal" and rec.units_source == "file header"
+    np.testing.assert_allclose(rec.accel, [0.01, 0.02, -0.03])
+    at2 = write(tmp_path, "cm.AT2", "PEER\nX\nACCELERATION IN UNITS OF CM/S2\n"
+                "NPTS= 3, DT= .01 SEC\n100.0 -50.0 0.0\n")
+    rec = read_record(at2)  # an AT2 header's cm/s2 beats PEER's g default
+    assert rec.units_in_file == "cm/s2"
+    np.testing.assert_allclose(rec.accel, [1.0, -0.5, 0.0])
+    with pytest.raises(ValueError, match=r"states units cm/s2 .* but units='g' was given"):
+        read_record(at2, units="g")
+
+
+def test_header_stating_a_length_is_refused(tmp_path):
+    """A displacement record ('UNITS OF CM') is refused naming the unit, and a record
+    cannot claim a unit that is not one of acceleration."""
+    path = write(tmp_path, "disp.AT2", "PEER\nX\nDISPLACEMENT IN UNITS OF CM\n"
+                 "NPTS= 2, DT= .01 SEC\n1 2\n")
+    with pytest.raises(ValueError, match=r"disp\.AT2: the header states units 'CM', which are "
+                                         r"not a unit of acceleration; records must be in g, "):
+        read_record(path)
+    with pytest.raises(ValueError, match=r"units_in_file must be one of g, m/s2, cm/s2, gal"):
+        Record(dt=0.01, accel=[0.0, 1.0], units_in_file="cm")
 
 
 def test_unsupported_header_units(tmp_path):

@@ -160,15 +160,15 @@ def _normalize_units(units: str) -> str:
 
 def _classify_unit_token(token: str, phrase: bool) -> str | None:
     """The canonical unit of acceleration of a unit token found in a header, 'unsupported'
-    for a unit that a record cannot be in (a length such as cm: a displacement record; in
+    for a unit that a record cannot be in (cm or mm: a displacement record; in
     a 'UNITS OF ...' phrase also any x/y, such as the CM/SEC of a velocity record), or None
     for a token to ignore (a unit of time such as the [s] of 'Time[s]', or no unit)."""
     key = token.strip().rstrip("/*^")
     kind = _units.kind_of(key)
     if kind == _ACCEL:
         return _units.normalize(key, _ACCEL)
-    if kind == "length" and key.lower() != "in":  # "units are in g": 'in' is a word
-        return "unsupported"
+    if kind == "length" and _units.normalize(key, "length") in ("cm", "mm"):
+        return "unsupported"  # not m or in: "Depth (m)", "units are in g" say nothing
     if kind is None and phrase and "/" in key:
         return "unsupported"
     return None

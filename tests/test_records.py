@@ -1,10 +1,10 @@
 """Tests for the ground-motion record readers and the El Centro dataset helper.
 
 Everything runs on records the project makes (`rockjax.datasets.synthetic_ground_motion`,
-written to tmp_path files in the AT2, two-column and one-column layouts by the writers
-below, which tests/test_sweep_cli.py and tests/test_batch.py use too). One test reads the
-real records (read-only files outside the repository, see PROVENANCE.md next to them)
-and skips without them; nothing here touches the network.
+written to tmp_path files in the AT2, two-column and one-column layouts by the writers of
+tests/helpers/records.py). One test reads the real records (read-only files outside the
+repository, see PROVENANCE.md next to them) and skips without them; nothing here touches
+the network.
 """
 
 from __future__ import annotations
@@ -14,6 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+# the writers of synthetic records live in tests/helpers/records.py (test_sweep_cli.py,
+# test_batch.py and test_sweep_distributed.py import them from here)
+from helpers.records import synthetic, write_at2, write_one_column, write_two_column  # noqa: F401
 
 from rockjax import common_time_step, datasets, G_STANDARD, read_record, Record, UNITS
 from rockjax._records import on_grid  # no public name
@@ -42,41 +46,6 @@ AT2_HEADER = (
     "SYNTHETIC TEST RECORD\n"
     "ACCELERATION TIME HISTORY IN UNITS OF G.\n"
 )
-
-
-# --- writers of synthetic records (also used by test_sweep_cli.py and test_batch.py) ------
-
-
-def synthetic(seed=0, dt=0.01, duration=4.0, pga=3.0):
-    """`datasets.synthetic_ground_motion`: a Record in m/s² (not a real earthquake)."""
-    return datasets.synthetic_ground_motion(seed=seed, dt=dt, duration=duration, pga=pga)
-
-
-def write_at2(path, rec, units_line="ACCELERATION TIME HISTORY IN UNITS OF G.", per_line=5):
-    """`rec` as a PEER AT2 file, values in g (`units_line`: the third header line)."""
-    vals = np.asarray(rec.accel) / G_STANDARD
-    rows = [
-        "".join(f"{v:17.9E}" for v in vals[i : i + per_line]) for i in range(0, vals.size, per_line)
-    ]
-    head = ["SYNTHETIC RECORD (rockjax.datasets.synthetic_ground_motion)", rec.source, units_line,
-            f"NPTS=  {vals.size}, DT= {rec.dt:.6f} SEC"]
-    Path(path).write_text("\n".join(head + rows) + "\n")
-    return Path(path)
-
-
-def write_two_column(path, rec, header="Time[s] Accel[g]", in_g=True):
-    """`rec` as two columns t [s], a (in g or m/s²), after the `header` lines (may be "")."""
-    vals = np.asarray(rec.accel) / (G_STANDARD if in_g else 1.0)
-    body = "\n".join(f"{i * rec.dt:.6f}\t{v:.10e}" for i, v in enumerate(vals))
-    Path(path).write_text((header + "\n" if header else "") + body + "\n")
-    return Path(path)
-
-
-def write_one_column(path, rec, in_g=True):
-    """`rec` as one column of accelerations (in g or m/s²), no header."""
-    vals = np.asarray(rec.accel) / (G_STANDARD if in_g else 1.0)
-    Path(path).write_text("\n".join(f"{v:.10e}" for v in vals) + "\n")
-    return Path(path)
 
 
 # --- the real records (the only test that needs the shared data) -------------------------
@@ -404,6 +373,10 @@ def test_header_stating_a_length_is_refused(tmp_path):
         read_record(path)
     with pytest.raises(ValueError, match=r"units_in_file must be one of g, m/s2, cm/s2, gal"):
         Record(dt=0.01, accel=[0.0, 1.0], units_in_file="cm")
+    # a unit of time, or m in a description line, says nothing about the acceleration
+    quiet = write(tmp_path, "q.dat", "Station depth (m)\nTime [sec] Accel[gal]\n0 1\n0.01 2\n")
+    rec = read_record(quiet)
+    assert (rec.units_in_file, rec.units_source) == ("gal", "file header")
 
 
 def test_unsupported_header_units(tmp_path):

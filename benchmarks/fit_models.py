@@ -25,31 +25,27 @@ Prints a markdown table: each parameter's estimate +- standard error (truth in t
 header; a k_f beyond 1000 x the truth as "-> inf", the rigid limit), the rms residual,
 the lack-of-fit statistics (lag-1 autocorrelation of the residuals, runs-test z), whether
 the check fires, and the fit's wall time, compile included (JAX's caches are cleared
-before each fit). `tests/test_fit_models.py` loads `make_trace` from here.
+before each fit). The traces are made by `make_trace` of tests/helpers/fit_models.py,
+which tests/test_fit_models.py uses too.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
+import pathlib
+import sys
 import time
 import warnings
 
 import jax
-import numpy as np
 
 import identification
 import rockjax
 
-K_F = 550e3  # [N/m] k_f of the 2-DOF and rigid-body traces
-U0 = 0.1  # [m] release displacement
-DURATION = 4.0  # [s]
-RATE_HZ = 100.0
-NOISE = 5e-4  # [m] std of the displacement noise
-ZETA = 0.05  # damping ratio of the vertical mode given by the dashpots (continuous)
-SEEDS = {"2dof_continuous": 14, "2dof_impact": 15, "rigid_body": 16}
-TRACES = ("sdof", "2dof_continuous", "2dof_impact", "rigid_body")
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
+from helpers.fit_models import make_trace, TRACES  # noqa: E402
+
 #: the model configurations fitted: (label, model, contact)
 MODELS = (
     ("housner", "housner", None),
@@ -60,47 +56,6 @@ MODELS = (
     ("2dof impact", "two_spring_2dof", "impact"),
     ("2dof continuous", "two_spring_2dof", "continuous"),
 )
-
-
-def dashpot(structure, k_f=K_F, zeta=ZETA):
-    """c_f [N s/m] giving the damping ratio `zeta` of the vertical mode: sqrt(2 k_f M)."""
-    return zeta * math.sqrt(2.0 * k_f * (float(structure.m_e) + float(structure.m_b)))
-
-
-def _model_of(name, structure):
-    if name == "2dof_continuous":
-        return rockjax.TwoSpring2DOF(damping=dashpot(structure), contact="continuous")
-    if name == "2dof_impact":
-        return rockjax.TwoSpring2DOF(contact="impact")
-    return name
-
-
-def make_trace(name):
-    """(trace, truth) of the SYNTHETIC trace `name` (see the module docstring); truth: the
-    true values of k_f, r (None where r does not act), c_f (None without dashpots), u0, t0
-    and the generating model."""
-    if name == "sdof":
-        path = identification.synthetic_trace_path("synthetic_decay_noisy")
-        truth = identification.synthetic_truth("synthetic_decay_noisy")
-        return identification.read_trace(path), {
-            "k_f": truth["k_f"], "r": truth["r"], "c_f": None, "u0": truth["u0"],
-            "t0": truth["t0"], "model": "simplified"}
-    if name not in SEEDS:
-        raise ValueError(f"unknown trace {name!r}; expected one of {TRACES}")
-    s = rockjax.mcmanus_column().replace(k_f=K_F)
-    ts = np.arange(int(round(DURATION * RATE_HZ)) + 1) / RATE_HZ
-    res = rockjax.simulate(s, rockjax.FreeVibration(U0), DURATION, ts=ts,
-                           model=_model_of(name, s), method="dopri5", rtol=1e-10,
-                           atol=1e-12)
-    if res.status_name != "completed":
-        raise RuntimeError(f"the {name} trace did not complete: {res.status_name}")
-    u = np.asarray(res.u) + np.random.default_rng(SEEDS[name]).normal(0.0, NOISE, ts.size)
-    truth = {"k_f": K_F, "r": None if name == "2dof_continuous" else float(s.restitution),
-             "c_f": dashpot(s) if name == "2dof_continuous" else None, "u0": U0, "t0": 0.0,
-             "model": name}
-    if name == "2dof_impact":
-        truth["c_f"] = 0.0
-    return identification.DecayTrace(ts, u, source=f"SYNTHETIC {name}"), truth
 
 
 def fit_one(trace, truth, model, contact, **kwargs):

@@ -14,7 +14,8 @@ displacement, sampled at times ``t`` [s], optionally with the uplift of the lift
 **Header.** One name per column: time ``t`` or ``time``; displacement ``u``, ``disp`` or
 ``displacement``; uplift ``uplift`` (optional); in any order, case-insensitive. Each name
 may carry its unit: ``time_s``, ``t_ms``, ``disp_mm``, ``u [mm]``, ``u (cm)``,
-``uplift[mm]``. Units of time: s, ms, us, min; of length: m, cm, mm, um, in. A column
+``uplift[mm]``. Units of time: s, ms, us, min; of length: m, cm, mm, um, in (the table of
+:data:`rockjax.UNITS`, which also lists their other spellings, such as sec). A column
 without a unit is taken as SI (s, m). Values are converted to SI, and the trace records
 what was read (:meth:`DecayTrace.info`). ``read_trace(path, columns={"t": "Zeit", "u":
 "Weg_mm"})`` picks the columns by name instead (others are ignored), and ``units={"u":
@@ -44,11 +45,12 @@ import json
 import math
 import os
 import pathlib
-import re
 import types
 import warnings
 
 import numpy as np
+
+import rockjax
 
 __all__ = [
     "CHANNELS",
@@ -80,13 +82,23 @@ SYNTHETIC_TRACES = ("synthetic_decay_clean", "synthetic_decay_noisy", "synthetic
 CHANNELS = ("t", "u", "uplift")
 """The channels of a trace: time [s], top displacement [m], uplift [m] (optional)."""
 
-TIME_UNITS = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "min": 60.0}
-"""Units of time a trace file may use, and their size in s."""
+_UNITS = rockjax.UNITS  # the one unit table of rockjax (records, traces, command line)
 
-LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "in": 0.0254}
-"""Units of length a trace file may use, and their size in m."""
 
-_UNITS_OF = {"t": TIME_UNITS, "u": LENGTH_UNITS, "uplift": LENGTH_UNITS}
+def _spelled(kind: str) -> dict:
+    return {name: _UNITS.factor(name, kind) for name, (k, _) in _UNITS.spellings.items()
+            if k == kind}
+
+
+TIME_UNITS = _spelled("time")
+"""Units of time a trace file may use (every spelling), and their size in s; from
+:data:`rockjax.UNITS`."""
+
+LENGTH_UNITS = _spelled("length")
+"""Units of length a trace file may use (every spelling), and their size in m; from
+:data:`rockjax.UNITS`."""
+
+_UNITS_OF = {"t": "time", "u": "length", "uplift": "length"}  # the kind of unit of a channel
 _SI = {"t": "s", "u": "m", "uplift": "m"}
 _KIND = {"t": "time", "u": "displacement", "uplift": "uplift"}
 _NAMES = {"t": ("t", "time"), "u": ("u", "disp", "displacement"), "uplift": ("uplift",)}
@@ -375,7 +387,7 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> Dec
             f"at least {MIN_SAMPLES} are needed",
         )
     data = np.asarray(rows, dtype=np.float64)
-    si = {ch: data[:, k] * _UNITS_OF[ch][layout.units[ch]]
+    si = {ch: _UNITS.to_si(data[:, k], layout.units[ch], _UNITS_OF[ch])
           for k, ch in enumerate(layout.channels)}
     t = si["t"]
     gap = _first_gap(t)
@@ -422,15 +434,9 @@ class _Layout:
 
 def _split_unit(cell: str) -> tuple[str, str | None]:
     """(name, unit or None) of a header cell: 'u [mm]', 'u (mm)', 'u[mm]' and 'u_mm' carry
-    the unit mm; lower case. An underscore suffix counts only if it is a known unit."""
-    s = cell.strip().lower()
-    m = re.fullmatch(r"(.*?)\s*[\[(]\s*([^\[\]()]*?)\s*[\])]", s)
-    if m:
-        return m.group(1).strip(), m.group(2)
-    base, sep, suffix = s.rpartition("_")
-    if sep and base and (suffix in TIME_UNITS or suffix in LENGTH_UNITS):
-        return base, suffix
-    return s, None
+    the unit mm; lower case. An underscore suffix counts only if it is a known unit of time
+    or length (`rockjax.UNITS.split_token`)."""
+    return _UNITS.split_token(cell.strip().lower(), ("time", "length"))
 
 
 def _read_header(name: str, lines: list[str], columns, units) -> tuple[int, _Layout]:
@@ -505,19 +511,14 @@ def _named_columns(where, cells: tuple, columns) -> dict:
 
 
 def _check_units_arg(units) -> dict:
+    """channel -> canonical unit of the `units` argument (UnitError for an unknown one)."""
     if units is None:
         return {}
     if not isinstance(units, dict) or set(units) - set(CHANNELS):
         raise ValueError(f"units must map channels {CHANNELS} to units, such as {{'u': "
                          f"'mm'}}, got {units!r}")
-    out = {}
-    for ch, unit in units.items():
-        key = str(unit).strip().lower()
-        if key not in _UNITS_OF[ch]:
-            raise ValueError(f"units[{ch!r}]: unknown unit {unit!r} for {_KIND[ch]}; "
-                             f"expected one of {', '.join(_UNITS_OF[ch])}")
-        out[ch] = key
-    return out
+    return {ch: _UNITS.normalize(unit, _UNITS_OF[ch], what=f"units[{ch!r}]")
+            for ch, unit in units.items()}
 
 
 def _channel_units(where, names: dict, units) -> tuple[dict, dict]:
@@ -526,13 +527,17 @@ def _channel_units(where, names: dict, units) -> tuple[dict, dict]:
     unit_of, units_from = {}, {}
     for ch, cell in names.items():
         _, in_header = _split_unit(cell)
-        table = _UNITS_OF[ch]
-        if in_header is not None and in_header not in table:
-            raise _line_error(*where, f"column {cell!r}: {in_header!r} is not a unit of "
-                              f"{'time' if ch == 't' else 'length'} (expected one of "
-                              f"{', '.join(table)})")
+        kind = _UNITS_OF[ch]
+        if in_header is not None:
+            try:
+                in_header = _UNITS.normalize(in_header, kind)
+            except rockjax.UnitError:
+                raise _line_error(*where, f"column {cell!r}: {in_header!r} is not a unit of "
+                                  f"{kind} (expected one of {', '.join(_UNITS.names(kind))})"
+                                  ) from None
         arg = given.get(ch)
-        if in_header is not None and arg is not None and table[in_header] != table[arg]:
+        if (in_header is not None and arg is not None
+                and _UNITS.factor(in_header, kind) != _UNITS.factor(arg, kind)):
             raise _line_error(*where, f"column {cell!r} is in {in_header}, but the units "
                               f"given say {arg} for {ch!r}")
         if in_header is not None:

@@ -80,6 +80,7 @@ from ._structure import (  # noqa: E402
     mcmanus_column as mcmanus_column,
     RockingStructure as RockingStructure,
 )
+from ._units import UnitError as UnitError, UNITS as UNITS  # noqa: E402
 from .models import (  # noqa: E402
     AbstractRestoringForce as AbstractRestoringForce,
     AbstractRockingModel as AbstractRockingModel,

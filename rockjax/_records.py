@@ -13,9 +13,12 @@ Three plain-text layouts are supported:
 - **One column** (``format="one_column"``): one acceleration per line, optionally preceded
   by text header lines; the time step must be given with ``dt=``.
 
-Units: a file that states its units (AT2 ``UNITS OF G``, a column title ``Accel[g]``) is
-read in those units; ``units=`` may repeat them but never contradict them (a ValueError
-names both). ``Record.units_source`` says where the units came from.
+Units: g, m/s2, cm/s2, gal, mm/s2 or in/s2, in any spelling of the unit table
+(:data:`rockjax.UNITS`: ``m/s^2``, ``cm/sec/sec``, ``Gal``, ...). A file that states its
+units (AT2 ``UNITS OF G``, ``in units of cm/sec/sec``, a column title ``Accel[gal]``) is
+read in those units; ``units=`` may repeat them (in any spelling of the same size) but
+never contradict them (a ValueError names both). ``Record.units_source`` says where the
+units came from.
 
 Every record is returned as a :class:`Record` in SI units (m/s²). The first sample is
 taken to be at ``t = 0`` of the simulation: a two-column record whose time column starts at
@@ -33,43 +36,15 @@ from pathlib import Path
 
 import numpy as np
 
+from . import _units
+from ._units import G_STANDARD
+
 __all__ = ["G_STANDARD", "Record", "common_time_step", "read_record"]
 
-G_STANDARD = 9.80665
-"""Standard gravity [m/s²], used to convert records given in units of g."""
-
 _FORMATS = ("at2", "two_column", "one_column")
-
-_UNIT_ALIASES = {
-    "g": "g",
-    "m/s2": "m/s2",
-    "m/s^2": "m/s2",
-    "m/s**2": "m/s2",
-    "m/s/s": "m/s2",
-    "m/sec2": "m/s2",
-    "m/sec^2": "m/s2",
-    "m/sec/sec": "m/s2",
-    "mps2": "m/s2",
-}
-# Units that a header may state but that this reader does not convert.
-_UNSUPPORTED_UNITS = (
-    "cm/s2",
-    "cm/s^2",
-    "cm/s**2",
-    "cm/s/s",
-    "cm/sec2",
-    "cm/sec^2",
-    "cm/sec/sec",
-    "gal",
-    "mm/s2",
-    "mm/s^2",
-    "in/s2",
-    "in/s^2",
-    "in/sec/sec",
-    "cm",
-    "mm",
-    "gals",
-)
+_ACCEL = "acceleration"
+#: the units of acceleration a record may be in (canonical names of the unit table)
+RECORD_UNITS = _units.names(_ACCEL)
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?"
 _NUM_RE = re.compile(_NUM)
@@ -103,7 +78,9 @@ class Record:
     description : str
         Header text of the file, if any (``""`` otherwise).
     units_in_file : str
-        Units of the values in the file, ``"g"`` or ``"m/s2"``; ``accel`` is always m/s².
+        Units of the values in the file, a canonical name of the unit table (``"g"``,
+        ``"m/s2"``, ``"cm/s2"``, ``"gal"``, ``"mm/s2"``, ``"in/s2"``); ``accel`` is always
+        m/s².
     units_source : str
         Where `units_in_file` came from: ``"file header"`` (the file states them; a
         ``units=`` given as well agreed), ``"given"`` (the file states none, ``units=`` was
@@ -139,9 +116,10 @@ class Record:
             raise ValueError(f"Record: accel needs at least 2 samples, got {accel.size}")
         if not np.all(np.isfinite(accel)):
             raise ValueError("Record: accel contains NaN or inf values")
-        if self.units_in_file not in ("g", "m/s2"):
+        if self.units_in_file not in RECORD_UNITS:
             raise ValueError(
-                f"Record: units_in_file must be 'g' or 'm/s2', got {self.units_in_file!r}"
+                f"Record: units_in_file must be one of {', '.join(RECORD_UNITS)}, got "
+                f"{self.units_in_file!r}"
             )
         accel.setflags(write=False)
         object.__setattr__(self, "dt", dt)
@@ -174,44 +152,45 @@ class Record:
 
 
 def _normalize_units(units: str) -> str:
-    key = str(units).strip().lower().replace(" ", "").replace("²", "^2")
     try:
-        return _UNIT_ALIASES[key]
-    except KeyError:
-        raise ValueError(
-            f"unknown units={units!r}; expected 'g' or 'm/s2' (also 'm/s^2', 'mps2')"
-        ) from None
+        return _units.normalize(units, _ACCEL)
+    except _units.UnitError as e:
+        raise ValueError(f"unknown units={units!r}; {e}") from None
 
 
-def _classify_unit_token(token: str) -> str | None:
-    """Return 'g', 'm/s2', 'unsupported' or None for a unit token found in a header."""
-    key = token.strip().lower().rstrip("/*^")
-    if key in _UNIT_ALIASES:
-        return _UNIT_ALIASES[key]
-    if key in _UNSUPPORTED_UNITS:
+def _classify_unit_token(token: str, phrase: bool) -> str | None:
+    """The canonical unit of acceleration of a unit token found in a header, 'unsupported'
+    for a unit that a record cannot be in (cm or mm: a displacement record; in
+    a 'UNITS OF ...' phrase also any x/y, such as the CM/SEC of a velocity record), or None
+    for a token to ignore (a unit of time such as the [s] of 'Time[s]', or no unit)."""
+    key = token.strip().rstrip("/*^")
+    kind = _units.kind_of(key)
+    if kind == _ACCEL:
+        return _units.normalize(key, _ACCEL)
+    if kind == "length" and _units.normalize(key, "length") in ("cm", "mm"):
+        return "unsupported"  # not m or in: "Depth (m)", "units are in g" say nothing
+    if kind is None and phrase and "/" in key:
         return "unsupported"
     return None
 
 
 def _units_from_header(header: str, source: str) -> tuple[str, str] | None:
     """(units, the header text that states them) or None when the header states nothing
-    recognizable; ``("both", ...)`` when it states g and m/s2.
+    recognizable; ``("both", ...)`` when it states units of different sizes (g and m/s2).
 
-    Raises ValueError when the header states units that this reader cannot convert
-    (e.g. cm/s², or the cm/sec of a velocity record).
+    Raises ValueError when the header states units that a record cannot be in (e.g. cm,
+    or the cm/sec of a velocity record).
     """
     header = header.replace("²", "^2")
     found: list[tuple[str, str, str]] = []
     for m in _UNITS_PHRASE_RE.finditer(header):
         token = m.group(1)
-        kind = _classify_unit_token(token)
-        if kind is None and "/" in token:
-            kind = "unsupported"  # e.g. "UNITS OF CM/SEC" (a velocity record)
+        kind = _classify_unit_token(token, phrase=True)
         if kind is not None:
             found.append((kind, token, m.group(0).strip()))
     for m in _UNITS_BRACKET_RE.finditer(header):
         token = m.group(1)
-        kind = _classify_unit_token(token)
+        kind = _classify_unit_token(token, phrase=False)
         if kind is not None:
             start = m.start()  # quote the column title too: "Accel[g]", not "[g]"
             while start > 0 and (header[start - 1].isalnum() or header[start - 1] in "_."):
@@ -222,31 +201,34 @@ def _units_from_header(header: str, source: str) -> tuple[str, str] | None:
     bad = [tok for kind, tok, _ in found if kind == "unsupported"]
     if bad:
         raise ValueError(
-            f"{source}: the header states units {bad[0]!r}, which are not supported; "
-            "records must be in g or m/s2 (convert the values, or build a Record from "
-            "arrays)"
+            f"{source}: the header states units {bad[0]!r}, which are not a unit of "
+            f"acceleration; records must be in {', '.join(RECORD_UNITS)} (convert the "
+            "values, or build a Record from arrays)"
         )
-    kinds = {kind for kind, _, _ in found}
-    if len(kinds) > 1:
-        return "both", ", ".join(repr(text) for _, _, text in found)
-    return kinds.pop(), repr(found[0][2])
+    sizes = {_units.factor(kind, _ACCEL) for kind, _, _ in found}
+    if len(sizes) > 1:
+        named = sorted({kind for kind, _, _ in found})
+        return "both", ", ".join(repr(text) for _, _, text in found), named
+    return found[0][0], repr(found[0][2])
 
 
 def _resolve_units(
-    stated: tuple[str, str] | None, given: str | None, source: str, default: str | None
+    stated: tuple | None, given: str | None, source: str, default: str | None
 ) -> tuple[str, str]:
     """(units, where they came from) from what the file states and what was given: a file
-    that states its units wins, and units given as well must agree with them."""
+    that states its units wins, and units given as well must agree with them (the same
+    size: gal and cm/s2 agree)."""
     if stated is not None and stated[0] == "both":
         if given is None:
+            named = stated[2]
             raise ValueError(
-                f"{source}: the header states conflicting units ['g', 'm/s2'] "
-                f"({stated[1]}); pass units='g' or units='m/s2'"
+                f"{source}: the header states conflicting units {named} ({stated[1]}); "
+                f"pass {' or '.join(f'units={u!r}' for u in named)}"
             )
         return given, "given"
     if stated is not None:
         units, text = stated
-        if given is not None and given != units:
+        if given is not None and _units.factor(given, _ACCEL) != _units.factor(units, _ACCEL):
             raise ValueError(
                 f"{source}: the file states units {units} ({text} in its header) but "
                 f"units={given!r} was given; omit units= or pass units={units!r}"
@@ -258,7 +240,8 @@ def _resolve_units(
         return default, "AT2 default"
     raise ValueError(
         f"{source}: the units of the acceleration are not stated in the file; "
-        "pass units='g' or units='m/s2'"
+        f"pass units='g' or units='m/s2' (or another unit of acceleration: "
+        f"{', '.join(RECORD_UNITS[2:])})"
     )
 
 
@@ -446,11 +429,14 @@ def read_record(
     ----------
     path : str or os.PathLike
         File to read.
-    units : {"g", "m/s2"}, optional
-        Units of the acceleration values in the file (``"m/s^2"`` and ``"mps2"`` are
-        accepted for m/s²). A file that states its units (``UNITS OF G`` in an AT2
-        header, ``Accel[g]`` in a column header) is read in those units, and `units`
-        must then agree with them: a contradiction is a ValueError naming both. When
+    units : str, optional
+        Units of the acceleration values in the file: ``"g"``, ``"m/s2"``, ``"cm/s2"``,
+        ``"gal"``, ``"mm/s2"`` or ``"in/s2"``, in any spelling of the unit table
+        :data:`rockjax.UNITS` (``"m/s^2"``, ``"mps2"``, ``"cm/sec/sec"``, ``"Gal"``). A
+        file that states its units (``UNITS OF G`` in an AT2 header, ``Accel[g]`` in a
+        column header) is read in those units, and `units` must then agree with them
+        (the same size: ``"gal"`` and ``"cm/s2"`` agree): a contradiction is a ValueError
+        naming both. When
         the file states nothing: `units` is used; an AT2 file without it is in g (PEER's
         convention); a one- or two-column file without it is a ValueError asking for
         ``units=``. ``Record.units_source`` records which rule applied.
@@ -464,7 +450,8 @@ def read_record(
     Returns
     -------
     Record
-        ``accel`` in m/s² (values in g are multiplied by ``G_STANDARD`` = 9.80665 m/s²),
+        ``accel`` in m/s² (values in g are multiplied by ``G_STANDARD`` = 9.80665 m/s²,
+        values in cm/s2 or gal by 0.01, and so on: :data:`rockjax.UNITS`),
         first sample at ``t = 0``. A two-column record whose time starts at ``t0 != 0``
         is shifted to start at 0, and its ``dt`` is ``(t[-1] - t[0]) / (n - 1)``.
 
@@ -533,7 +520,7 @@ def read_record(
         )
     if accel.size < 2:
         raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
-    scale = G_STANDARD if units == "g" else 1.0
+    scale = _units.factor(units, _ACCEL)
     return Record(
         dt=dt_file,
         accel=accel * scale,

@@ -15,37 +15,24 @@ All edges count, edges into and out of a package __init__ included: any cycle fa
 An import of a module of ours that does not exist gives no edge; test_internal_imports_resolve
 reports it instead.
 
-The function-length measure lives in benchmarks/longest_functions.py (loaded here by path),
-which also prints the longest functions.
+The function-length measure lives in tests/helpers/lengths.py (`python
+benchmarks/longest_functions.py` prints the longest functions with it).
 """
 
 from __future__ import annotations
 
 import ast
-import importlib.util
 import pathlib
-import sys
 import textwrap
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from typing import NamedTuple
 
 import pytest
+from helpers import lengths
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 SOURCE_ROOTS = ("rockjax", "identification")
-
-
-def _load_length_tool():
-    path = REPO / "benchmarks" / "longest_functions.py"
-    spec = importlib.util.spec_from_file_location("_rockjax_longest_functions", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-lengths = _load_length_tool()
 
 
 # ------------------------------------------------------------------------------------------

@@ -1,10 +1,11 @@
 """fit_decay with the model the data needs (issue 14, item 6): every model of the ladder,
 the 2-DOF body's contact law and dashpots c_f, and the lack-of-fit check.
 
-The traces are SYNTHETIC (`make_trace` of benchmarks/fit_models.py, loaded by path, which
-also prints the table of docs/identification.md): the 2-DOF body released at rest from
-0.1 m, 4 s at 100 Hz, noise 0.5 mm, Table 1 with k_f = 550 kN/m; `2dof_continuous` with
-continuous contact and dashpots at 5 % of critical of the vertical mode (c_f = 678 N s/m).
+The traces are SYNTHETIC (`make_trace` of tests/helpers/fit_models.py, which
+`benchmarks/fit_models.py` fits for the table of docs/identification.md): the 2-DOF body
+released at rest from 0.1 m, 4 s at 100 Hz, noise 0.5 mm, Table 1 with k_f = 550 kN/m;
+`2dof_continuous` with continuous contact and dashpots at 5 % of critical of the vertical
+mode (c_f = 678 N s/m).
 
 Default suite (about 2 min on 2 cores): the 2-DOF body fitted to the continuous-contact
 trace recovers k_f within 5 % and passes the lack-of-fit check; the simplified SDOF fitted
@@ -16,7 +17,6 @@ rigid body, the command line with the 2-DOF body.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 import json
 import pathlib
@@ -25,6 +25,7 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers.fit_models import K_F, make_trace
 
 import identification
 import rockjax
@@ -33,18 +34,6 @@ from identification._lack import lack_of_fit, RHO_MAX, RUNS_Z_MAX
 from rockjax.cli import main
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-K_F = 550e3
-
-
-def _bench():
-    spec = importlib.util.spec_from_file_location("_fit_models_bench",
-                                                  REPO / "benchmarks" / "fit_models.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-BENCH = _bench()
 
 
 def recorded_fit(trace, **kwargs):
@@ -195,7 +184,7 @@ def test_defaults_of_the_2dof_body_and_the_c_f_start():
 @pytest.fixture(scope="module")
 def continuous():
     """The noisy continuous-contact dashpot trace of the 2-DOF body, and its truth."""
-    return BENCH.make_trace("2dof_continuous")
+    return make_trace("2dof_continuous")
 
 
 @pytest.fixture(scope="module")
@@ -311,7 +300,7 @@ def test_cli_fits_the_2dof_body(continuous, tmp_path):
 
 @pytest.fixture(scope="module")
 def impact():
-    return BENCH.make_trace("2dof_impact")
+    return make_trace("2dof_impact")
 
 
 @pytest.mark.slow
@@ -333,7 +322,7 @@ def test_impact_contact_trace(impact):
 def test_rigid_body_fits(continuous):
     """rigid_body on its own trace: right and quiet; on the 2-DOF trace: flagged, naming
     the 2-DOF body as the next model up."""
-    trace, truth = BENCH.make_trace("rigid_body")
+    trace, truth = make_trace("rigid_body")
     fit, _, caught = recorded_fit(trace, model="rigid_body", initial={"k_f": 2 * K_F})
     assert abs(fit.values["k_f"] / truth["k_f"] - 1) < 0.05
     assert abs(fit.values["r"] / truth["r"] - 1) < 0.05

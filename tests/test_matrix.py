@@ -1,9 +1,10 @@
 """Every model × every integrator on one corpus of ordinary and adversarial inputs.
 
-The corpus (`benchmarks/matrix.py`, imported here so that the test and the table in
-`docs/matrix.md` run the same cases) is made by the project: leading zeros (0 to 1000
-samples), trailing zeros, a record that ends mid-rock, a body at rest at u = 0 under zero
-forcing, a constant offset, releases at rest, at u_crit and at u_overturn. The fast
+The corpus (tests/helpers/matrix.py, which `benchmarks/matrix.py` imports too so that the
+test and the table in `docs/matrix.md` run the same cases) is made by the project: leading
+zeros (0 to 1000 samples), trailing zeros, a record that ends mid-rock, a body at rest at
+u = 0 under zero forcing, a constant offset, releases at rest, at u_crit and at u_overturn.
+The fast
 integrators must agree with the event-restart diffrax integrator on the status, the
 impact count and the peak within their stated tolerance. The same check runs on long
 records with quiet starts, generated like IELC180 (with leading zeros) and ChiChi.dat (2 s
@@ -12,18 +13,11 @@ of zeros); `python benchmarks/matrix.py --real DIR` runs it on the real records.
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
+from helpers import matrix
 
 import rockjax
-
-_spec = importlib.util.spec_from_file_location(
-    "matrix", pathlib.Path(__file__).parents[1] / "benchmarks" / "matrix.py")
-matrix = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(matrix)
 
 CASES = [*matrix.records(), *matrix.releases(rockjax.mcmanus_column())]
 

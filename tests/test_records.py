@@ -1,10 +1,10 @@
 """Tests for the ground-motion record readers and the El Centro dataset helper.
 
 Everything runs on records the project makes (`rockjax.datasets.synthetic_ground_motion`,
-written to tmp_path files in the AT2, two-column and one-column layouts by the writers
-below, which tests/test_sweep_cli.py and tests/test_batch.py use too). One test reads the
-real records (read-only files outside the repository, see PROVENANCE.md next to them)
-and skips without them; nothing here touches the network.
+written to tmp_path files in the AT2, two-column and one-column layouts by the writers of
+tests/helpers/records.py). One test reads the real records (read-only files outside the
+repository, see PROVENANCE.md next to them) and skips without them; nothing here touches
+the network.
 """
 
 from __future__ import annotations
@@ -15,8 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rockjax import datasets
-from rockjax._records import common_time_step, G_STANDARD, on_grid, read_record, Record
+# the writers of synthetic records live in tests/helpers/records.py (test_sweep_cli.py,
+# test_batch.py and test_sweep_distributed.py import them from here)
+from helpers.records import synthetic, write_at2, write_one_column, write_two_column  # noqa: F401
+
+from rockjax import common_time_step, datasets, G_STANDARD, read_record, Record, UNITS
+from rockjax._records import on_grid  # no public name
 
 # file -> (read_record kwargs, dt [s], npts, PGA [m/s^2], units_in_file, units_source),
 # from PROVENANCE.md
@@ -42,41 +46,6 @@ AT2_HEADER = (
     "SYNTHETIC TEST RECORD\n"
     "ACCELERATION TIME HISTORY IN UNITS OF G.\n"
 )
-
-
-# --- writers of synthetic records (also used by test_sweep_cli.py and test_batch.py) ------
-
-
-def synthetic(seed=0, dt=0.01, duration=4.0, pga=3.0):
-    """`datasets.synthetic_ground_motion`: a Record in m/s² (not a real earthquake)."""
-    return datasets.synthetic_ground_motion(seed=seed, dt=dt, duration=duration, pga=pga)
-
-
-def write_at2(path, rec, units_line="ACCELERATION TIME HISTORY IN UNITS OF G.", per_line=5):
-    """`rec` as a PEER AT2 file, values in g (`units_line`: the third header line)."""
-    vals = np.asarray(rec.accel) / G_STANDARD
-    rows = [
-        "".join(f"{v:17.9E}" for v in vals[i : i + per_line]) for i in range(0, vals.size, per_line)
-    ]
-    head = ["SYNTHETIC RECORD (rockjax.datasets.synthetic_ground_motion)", rec.source, units_line,
-            f"NPTS=  {vals.size}, DT= {rec.dt:.6f} SEC"]
-    Path(path).write_text("\n".join(head + rows) + "\n")
-    return Path(path)
-
-
-def write_two_column(path, rec, header="Time[s] Accel[g]", in_g=True):
-    """`rec` as two columns t [s], a (in g or m/s²), after the `header` lines (may be "")."""
-    vals = np.asarray(rec.accel) / (G_STANDARD if in_g else 1.0)
-    body = "\n".join(f"{i * rec.dt:.6f}\t{v:.10e}" for i, v in enumerate(vals))
-    Path(path).write_text((header + "\n" if header else "") + body + "\n")
-    return Path(path)
-
-
-def write_one_column(path, rec, in_g=True):
-    """`rec` as one column of accelerations (in g or m/s²), no header."""
-    vals = np.asarray(rec.accel) / (G_STANDARD if in_g else 1.0)
-    Path(path).write_text("\n".join(f"{v:.10e}" for v in vals) + "\n")
-    return Path(path)
 
 
 # --- the real records (the only test that needs the shared data) -------------------------
@@ -333,11 +302,81 @@ def test_at2_bad_npts_line(tmp_path):
         read_record(path)
 
 
-@pytest.mark.parametrize("units", ["cm/s2", "gal", "ft/s2", ""])
+@pytest.mark.parametrize("units", ["ft/s2", "cm/s3", "mm", "s", ""])
 def test_unknown_units(tmp_path, units):
+    """An argument that is not a unit of acceleration is refused naming it and listing the
+    units a record may be in (cm/s2 and gal, refused before issue 23, are read now)."""
     path = write(tmp_path, "u.dat", "0.0 0.1\n0.01 0.2\n")
-    with pytest.raises(ValueError, match=r"unknown units="):
+    with pytest.raises(ValueError, match=r"unknown units=") as info:
         read_record(path, units=units)
+    assert f"units={units!r}" in str(info.value)
+    assert "g, m/s2, cm/s2, gal, mm/s2, in/s2" in str(info.value)
+
+
+# (units given, header text stating them or None, factor to m/s2)
+SI_UNITS = [
+    ("m/s2", "Accel[m/s2]", 1.0),
+    ("cm/s2", "Accel[cm/s2]", 0.01),
+    ("cm/sec/sec", "ACCELERATION IN UNITS OF CM/SEC/SEC", 0.01),
+    ("gal", "Accel[gal]", 0.01),
+    ("Gal", "Acceleration (Gal)", 0.01),
+    ("mm/s2", "a [mm/s^2]", 1e-3),
+    ("g", "Accel[g]", G_STANDARD),
+]
+
+
+@pytest.mark.parametrize("given, header, size", SI_UNITS)
+def test_records_in_other_units_give_the_same_si_record(tmp_path, given, header, size):
+    """One record written in m/s2, cm/s2, gal, mm/s2 and g reads back as the same SI record,
+    whether the units come from the header or from units= (issue 23)."""
+    rec = synthetic(seed=3, duration=1.0)
+    vals = np.asarray(rec.accel) / size
+    body = "\n".join(f"{i * rec.dt:.6f} {v:.12e}" for i, v in enumerate(vals)) + "\n"
+    stated = write(tmp_path, "stated.dat", f"Time[s] {header}\n" + body)
+    bare = write(tmp_path, "bare.dat", body)
+    from_header = read_record(stated)
+    from_arg = read_record(bare, units=given)
+    canonical = UNITS.normalize(given, "acceleration")
+    assert (from_header.units_in_file, from_header.units_source) == (canonical, "file header")
+    assert (from_arg.units_in_file, from_arg.units_source) == (canonical, "given")
+    for got in (from_header, from_arg):
+        np.testing.assert_allclose(got.accel, rec.accel, rtol=1e-11, atol=1e-14)
+    assert read_record(stated, units=given).units_source == "file header"  # agreeing: fine
+
+
+def test_header_units_win_and_a_contradicting_argument_names_both(tmp_path):
+    """A header in gal read with units='m/s2' is refused naming both; units of the same
+    size in another spelling (cm/s2 for gal) agree, and the header's name is kept."""
+    path = write(tmp_path, "gal.dat", "Time[s] Accel[gal]\n0 1.0\n0.01 2.0\n0.02 -3.0\n")
+    with pytest.raises(ValueError, match=r"gal\.dat: the file states units gal \('Accel\[gal\]' "
+                                         r"in its header\) but units='m/s2' was given"):
+        read_record(path, units="m/s2")
+    rec = read_record(path, units="cm/s^2")
+    assert rec.units_in_file == "gal" and rec.units_source == "file header"
+    np.testing.assert_allclose(rec.accel, [0.01, 0.02, -0.03])
+    at2 = write(tmp_path, "cm.AT2", "PEER\nX\nACCELERATION IN UNITS OF CM/S2\n"
+                "NPTS= 3, DT= .01 SEC\n100.0 -50.0 0.0\n")
+    rec = read_record(at2)  # an AT2 header's cm/s2 beats PEER's g default
+    assert rec.units_in_file == "cm/s2"
+    np.testing.assert_allclose(rec.accel, [1.0, -0.5, 0.0])
+    with pytest.raises(ValueError, match=r"states units cm/s2 .* but units='g' was given"):
+        read_record(at2, units="g")
+
+
+def test_header_stating_a_length_is_refused(tmp_path):
+    """A displacement record ('UNITS OF CM') is refused naming the unit, and a record
+    cannot claim a unit that is not one of acceleration."""
+    path = write(tmp_path, "disp.AT2", "PEER\nX\nDISPLACEMENT IN UNITS OF CM\n"
+                 "NPTS= 2, DT= .01 SEC\n1 2\n")
+    with pytest.raises(ValueError, match=r"disp\.AT2: the header states units 'CM', which are "
+                                         r"not a unit of acceleration; records must be in g, "):
+        read_record(path)
+    with pytest.raises(ValueError, match=r"units_in_file must be one of g, m/s2, cm/s2, gal"):
+        Record(dt=0.01, accel=[0.0, 1.0], units_in_file="cm")
+    # a unit of time, or m in a description line, says nothing about the acceleration
+    quiet = write(tmp_path, "q.dat", "Station depth (m)\nTime [sec] Accel[gal]\n0 1\n0.01 2\n")
+    rec = read_record(quiet)
+    assert (rec.units_in_file, rec.units_source) == ("gal", "file header")
 
 
 def test_unsupported_header_units(tmp_path):

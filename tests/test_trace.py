@@ -1,4 +1,5 @@
-"""identification._trace: DecayTrace, read_trace and the shipped SYNTHETIC decay traces."""
+"""Decay traces (identification/_trace.py): DecayTrace, read_trace and the shipped
+SYNTHETIC decay traces."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 
 import identification
 import rockjax
-from identification._trace import (
+from identification import (
     DecayTrace,
     read_trace,
     synthetic_trace_path,

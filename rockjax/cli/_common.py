@@ -346,16 +346,30 @@ def cli_message(text):
     return text.replace(" was passed", " was given")
 
 
-#: the units a `--record FILE:UNITS` suffix may name (case-insensitive), as read_record
-_UNIT_SUFFIXES = {"g": "g", "m/s2": "m/s2", "m/s^2": "m/s2", "mps2": "m/s2", "m/s**2": "m/s2"}
+#: the units of acceleration a record may be in (`rockjax.UNITS`), for --units' help
+RECORD_UNITS = tuple(rockjax.UNITS["acceleration"])
+RECORD_UNITS_METAVAR = "{" + ",".join(RECORD_UNITS) + "}"
+
+
+def record_units(text):
+    """--units: a unit of acceleration in any spelling of `rockjax.UNITS` (``g``, ``m/s2``,
+    ``cm/s^2``, ``Gal``, ...) -> its canonical name; an unknown unit is an argparse error
+    that names it and lists the known ones."""
+    try:
+        return rockjax.UNITS.normalize(text, "acceleration")
+    except rockjax.UnitError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def split_record_units(text):
-    """(path, units or None) of a `--record` value: a trailing `:g` or `:m/s2` (also
-    `:m/s^2`, `:mps2`) names the record's units; any other colon belongs to the path, and
-    so does the suffix when the whole text names an existing file."""
+    """(path, units or None) of a `--record` value: a trailing `:UNIT` naming a unit of
+    acceleration of `rockjax.UNITS` (`:g`, `:m/s2`, `:cm/s2`, `:gal`, also `:m/s^2`,
+    `:mps2`, ...) names the record's units (canonical name); any other colon belongs to the
+    path, and so does the suffix when the whole text names an existing file."""
     head, sep, tail = str(text).rpartition(":")
-    units = _UNIT_SUFFIXES.get(tail.strip().lower()) if sep else None
+    units = None
+    if sep and rockjax.UNITS.kind_of(tail) == "acceleration":
+        units = rockjax.UNITS.normalize(tail, "acceleration")
     if units is None or not head or pathlib.Path(text).exists():
         return str(text), None
     return head, units

@@ -29,6 +29,8 @@ from ._common import (
     model_line,
     record_info,
     record_line,
+    record_units,
+    RECORD_UNITS_METAVAR,
 )
 
 #: the --out CSV columns and their units (the header reads t_s,u_m,v_m_s,theta_rad,uplift_m)
@@ -43,7 +45,7 @@ def add_parser(subparsers):
         help="time history of a free-vibration release or a ground-motion record (Eq 1)",
         description="Integrate Eq 1 with impacts at u = 0 (velocity scaled by sqrt(r)). "
         "Free vibration: --u0 [--v0]. Ground motion: --record FILE (PEER AT2, two columns "
-        "t a, or one column with --record-dt) [--units g|m/s2] [--scale S].",
+        "t a, or one column with --record-dt) [--units g|m/s2|cm/s2|gal|...] [--scale S].",
     )
     m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
     m.add_argument("--u0", type=_finite_float("--u0"), metavar="M", help="release displacement [m]")
@@ -55,7 +57,8 @@ def add_parser(subparsers):
         help="release velocity [m/s] (default 0)",
     )
     m.add_argument("--record", metavar="FILE", help="ground-motion record file")
-    m.add_argument("--units", choices=["g", "m/s2"], help="units of the record's values")
+    m.add_argument("--units", type=record_units, metavar=RECORD_UNITS_METAVAR,
+                   help="units of the record's values (other spellings: m/s^2, Gal, ...)")
     m.add_argument(
         "--scale",
         type=_finite_float("--scale"),

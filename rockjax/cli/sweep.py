@@ -52,6 +52,8 @@ from ._common import (
     model_info,
     model_line,
     record_info,
+    record_units,
+    RECORD_UNITS_METAVAR,
     split_record_units,
 )
 
@@ -140,14 +142,15 @@ def _add_input_arguments(w):
         action=_InOrder,
         required=True,
         metavar="FILE[:UNITS]|DIR",
-        help="ground-motion record file, repeatable (at least one); FILE:g or FILE:m/s2 "
-        "states its units; a folder takes every record file in it (.AT2, .dat, .txt, "
-        ".csv, .acc), sorted by name",
+        help="ground-motion record file, repeatable (at least one); FILE:g, FILE:m/s2, "
+        "FILE:cm/s2 or FILE:gal states its units; a folder takes every record file in it "
+        "(.AT2, .dat, .txt, .csv, .acc), sorted by name",
     )
     w.add_argument(
         "--units",
         action=_InOrder,
-        choices=["g", "m/s2"],
+        type=record_units,
+        metavar=RECORD_UNITS_METAVAR,
         help="units of the --record just before it (before any --record: of every record "
         "that states no units of its own). A file that states its units (AT2 'UNITS OF "
         "G', a column title 'Accel[g]') is read in them; units given that contradict them "

@@ -110,6 +110,19 @@ class OverturningSpectrum:
             "n_failed": self.n_failed, "wall_time_s": self.wall_time,
         }
 
+    def to_csv(self, path):
+        """One row per period, header `period_s,x_-,amplitude_m/s2,normalised_-,
+        amplitude_no_impact_m/s2,bracket_lo_m/s2,bracket_hi_m/s2` (SI units; nan where
+        nothing overturned)."""
+        cols = {"period": (self.periods, "s"), "x": (self.x, "-"),
+                "amplitude": (self.amplitude, "m/s2"), "normalised": (self.normalised, "-"),
+                "amplitude_no_impact": (self.amplitude_no_impact, "m/s2"),
+                "bracket_lo": (self.bracket[:, 0], "m/s2"),
+                "bracket_hi": (self.bracket[:, 1], "m/s2")}
+        np.savetxt(path, np.column_stack([v for v, _ in cols.values()]), delimiter=",",
+                   header=",".join(f"{k}_{u}" for k, (_, u) in cols.items()), comments="",
+                   fmt="%.10g")
+
     def plot(self, ax=None, label=None):
         """amplitude / ($g\\tan\\alpha$) against `x` (matplotlib; returns the axes): the
         lowest overturning amplitude, and the no-impact mode where it is higher."""

@@ -1,17 +1,18 @@
 """`rockjax.sweep`: every record at every scale factor, the one batch engine behind
 fragility curves and the `rockjax sweep` / `rockjax fragility` commands.
 
-The runs go through `rockjax.simulate_batch(summary_only=True)` in record-major order (run
-k: record k // n_scales, scale k % n_scales), so a `SweepResult` holds arrays of shape
-(n_records, n_scales) with no transposition anywhere. Over several `jax.distributed`
-processes (`processes=rockjax.Processes.current()`) each process runs a contiguous block of
-the runs and every process ends with the whole result. The status counting (the fraction
-overturned among the runs that completed or overturned, the failed runs per scale) is
-written here once.
+The runs go through `rockjax.simulate_batch(summary_only=True)` as one flat batch (run k:
+record k % n_records at scale k // n_records, the order of the CSV rows) and a `SweepResult`
+holds arrays of shape (n_records, n_scales), the one orientation of the API and the CLI.
+Over several `jax.distributed` processes (`processes=rockjax.Processes.current()`) each
+process runs a contiguous block of the runs and every process ends with the whole result.
+The status counting (the fraction overturned among the runs that completed or overturned,
+the failed runs per scale) is written here once.
 """
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import os
 import pathlib
@@ -22,15 +23,26 @@ import numpy as np
 from ._batch import DEFAULT_TAIL, simulate_batch
 from ._distributed import Processes
 from ._excitation import GroundMotion
-from ._records import read_record, Record
+from ._fidelity import warn_sdof_lift_off
+from ._records import G_STANDARD, read_record, Record
 from ._status import STATUS, STATUS_NAMES
 from ._structure import FIELDS, RockingStructure
+from .models import get_model
 
 #: the Summary fields a SweepResult keeps, each of shape (n_records, n_scales)
 SWEEP_FIELDS = ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn", "t_end")
 #: the statuses of a run that the fit uses; the others are failures, left out and counted
 USABLE = (STATUS["completed"], STATUS["overturned"])
 FAILED = tuple(name for name, code in STATUS.items() if code not in USABLE)
+#: the columns of `SweepResult.to_csv` (and `rockjax sweep --out`), one row per run
+CSV_COLUMNS = ("structure", "record", "scale", "peak_u_m", "peak_uplift_m", "n_impacts",
+               "status", "t_overturn_s", "t_end_s", "record_file", "record_units",
+               "record_units_from", "record_dt_s", "record_npts", "record_duration_s",
+               "record_pga_g", "model", "impact", "r", "method")
+#: the models whose impacts are their landings (no SDOF impact rule)
+_BODY_MODELS = ("rigid_body", "two_spring_2dof")
+#: a sweep's batches are padded to a multiple of this many runs (`_run`)
+_VECTOR = 8
 #: simulate_batch arguments that `sweep` sets itself
 _SET_BY_SWEEP = ("scale", "record", "summary_only", "ts", "excitation", "structure", "u0", "v0")
 
@@ -143,6 +155,30 @@ class SweepResult:
             "wall_time_s": self.wall_time,
         }
 
+    def to_csv(self, path, label="structure"):
+        """Write `csv_rows` under the header `CSV_COLUMNS` (`write_csv`: several sweeps)."""
+        write_csv(path, [self], [label])
+
+    def csv_rows(self, label="structure"):
+        """One row per run, scale-major then record (the order of `rockjax sweep --out`):
+        `label`, the record's label, the scale and the summaries (SI units, floats as
+        repr, status as text, t_overturn empty if it did not overturn), then what produced
+        it: the record's file, units, where they came from, dt, points, duration, PGA [g];
+        the model, impact rule ("landings" for the body models), r ("Eq 3": the
+        structure's) and method."""
+        names, opts = self.status_names(), self.options
+        r = "Eq 3" if opts.get("r") is None else repr(float(opts["r"]))
+        impact = "landings" if self.model_name in _BODY_MODELS else self.impact
+        tail = [self.model_name, impact, r, opts.get("method", "rk4")]
+        recs = [_provenance(rec) for rec in self.records]
+        for i, scale in enumerate(self.scales):
+            for j, (lab, rec) in enumerate(zip(self.labels, recs)):
+                t_ov = float(self.t_overturn[j, i])
+                yield [label, lab, repr(float(scale)), repr(float(self.peak_u[j, i])),
+                       repr(float(self.peak_uplift[j, i])), int(self.n_impacts[j, i]),
+                       names[j, i], repr(t_ov) if np.isfinite(t_ov) else "",
+                       repr(float(self.t_end[j, i])), *rec, *tail]
+
     def status_names(self) -> np.ndarray:
         """The status of each run as text, (n_records, n_scales)."""
         return np.vectorize(STATUS_NAMES.__getitem__, otypes=[str])(self.status)
@@ -155,6 +191,26 @@ class SweepResult:
         from ._plotting import plot_sweeps
 
         return plot_sweeps([self], [label], title=title)
+
+
+def _provenance(rec):
+    """The record columns of a CSV row: file, units, their source, dt, points, duration,
+    PGA [g] (a GroundMotion: no file, m/s2, its own scale applied)."""
+    dt, acc = float(rec.dt), np.asarray(rec.accel)
+    pga = float(np.max(np.abs(acc)) * getattr(rec, "scale", 1.0))
+    return [str(getattr(rec, "source", "")), getattr(rec, "units_in_file", "m/s2"),
+            getattr(rec, "units_source", "") or "", repr(dt), int(acc.size),
+            repr(dt * (acc.size - 1)), repr(pga / G_STANDARD)]
+
+
+def write_csv(path, results, labels):
+    """Sweeps (one per structure, `labels` their names) as one CSV: `CSV_COLUMNS`, then
+    `SweepResult.csv_rows` of each."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(CSV_COLUMNS)
+        for res, lab in zip(results, labels):
+            w.writerows(res.csv_rows(lab))
 
 
 def _check_structure(structure):
@@ -257,18 +313,29 @@ def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, 
 
 def _run(structure, records, scales, t1, tail, model, options, processes):
     """The SWEEP_FIELDS of every run, (n_records, n_scales): this process's block of the
-    runs (record-major: run k is record k // n_scales at scale k % n_scales), gathered
-    from every process."""
+    runs, gathered from every process. Run k is record k % n_records at scale
+    k // n_records: a block of at least n_records runs holds every record, so that its
+    batch runs as the whole sweep's does (per-record ends); and every batch is padded to a
+    multiple of `_VECTOR` runs (the last one repeated), which keeps every member on XLA's
+    vectorised path: a block gives the bits of the whole sweep (CPU, measured)."""
     n_r, n_s = len(records), scales.size
     lo, hi = processes.block(n_r * n_s)
     k = np.arange(lo, hi)
+    k = np.concatenate([k, np.repeat(k[-1:], (-k.size) % _VECTOR)])
     part, error = np.zeros((1 + len(SWEEP_FIELDS), hi - lo)), None  # row 0: failed
     try:
         if hi > lo:
-            out = simulate_batch(structure, list(records), t1, tail=tail, scale=scales[k % n_s],
-                                 record=k // n_s, model=model, summary_only=True, **options)
-            part[1:] = [np.asarray(getattr(out, f)) for f in SWEEP_FIELDS]
+            out = simulate_batch(structure, list(records), t1, tail=tail, scale=scales[k // n_r],
+                                 record=k % n_r, model=model, summary_only=True,
+                                 **{**options, "fidelity_warning": False})
+            part[1:] = [np.asarray(getattr(out, f))[: hi - lo] for f in SWEEP_FIELDS]
     except Exception as e:  # noqa: BLE001 - raised again by gather, after the others know
         part[0], error = 1, e
     full = processes.gather(part, n_r * n_s, error)
-    return {f: full[1 + i].reshape(n_r, n_s) for i, f in enumerate(SWEEP_FIELDS)}
+    k = np.arange(n_r * n_s)
+    fields = {f: np.empty((n_r, n_s)) for f in SWEEP_FIELDS}
+    for i, f in enumerate(SWEEP_FIELDS):
+        fields[f][k % n_r, k // n_r] = full[1 + i]
+    warn_sdof_lift_off(get_model(model, options.get("impact", "paper")), structure, True,
+                       fields["peak_u"].ravel(), options.get("fidelity_warning", True), 4)
+    return fields

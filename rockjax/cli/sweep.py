@@ -16,23 +16,21 @@ runs, process 0 gathers them and writes the same outputs as one process would.
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import json
 import math
 import pathlib
 import sys
 import time
-import zlib
 
-import jax
 import numpy as np
 
 import rockjax
 from rockjax._batch import DEFAULT_TAIL
+from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
-from rockjax._sweep import USABLE
+from rockjax._sweep import USABLE, write_csv
 
 from . import _distributed
 from ._common import (
@@ -55,28 +53,6 @@ from ._common import (
     split_record_units,
 )
 
-SWEEP_COLUMNS = (
-    "structure",
-    "record",
-    "scale",
-    "peak_u_m",
-    "peak_uplift_m",
-    "n_impacts",
-    "status",
-    "t_overturn_s",
-    "t_end_s",
-    "record_file",
-    "record_units",
-    "record_units_from",
-    "record_dt_s",
-    "record_npts",
-    "record_duration_s",
-    "record_pga_g",
-    "model",
-    "impact",
-    "r",
-    "method",
-)
 #: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
 RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
 
@@ -439,21 +415,10 @@ def _check_run_length(sweep):
 
 
 def _fingerprint(sweep):
-    """A checksum of what was read (labels, scales, records, structures): processes that
-    read different files disagree on it."""
-    h = zlib.crc32(json.dumps([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
-                               sweep.tail, sweep.t1]).encode())
-    for rec in sweep.records:
-        h = zlib.crc32(np.ascontiguousarray(rec.accel, float).tobytes(), h)
-        h = zlib.crc32(repr(float(rec.dt)).encode(), h)
-    for s in sweep.structures:
-        for leaf in jax.tree_util.tree_leaves(s):
-            try:
-                data = np.ascontiguousarray(leaf, float).tobytes()
-            except (TypeError, ValueError):
-                data = repr(leaf).encode()
-            h = zlib.crc32(data, h)
-    return h
+    """A checksum of what was read: processes that read different files disagree on it."""
+    return fingerprint([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
+                        sweep.tail, sweep.t1],
+                       [(r.accel, float(r.dt)) for r in sweep.records] + sweep.structures)
 
 
 def _run_batches(args, sweep, cluster=None):
@@ -479,29 +444,8 @@ def _run_batches(args, sweep, cluster=None):
     sweep.processes = cluster.count
 
 
-def _csv_rows(args, sweep):
-    infos, model = sweep.record_infos(), model_info(args)
-    r = model["r"] if isinstance(model["r"], str) else repr(float(model["r"]))
-    for lab_s, res in zip(sweep.struct_labels, sweep.results):
-        names = res.status_names()
-        for i, scale in enumerate(sweep.scales):
-            for j, info in enumerate(infos):
-                t_ov = float(res.t_overturn[j, i])
-                yield [
-                    lab_s, info["label"], repr(float(scale)), repr(float(res.peak_u[j, i])),
-                    repr(float(res.peak_uplift[j, i])), int(res.n_impacts[j, i]), names[j, i],
-                    repr(t_ov) if math.isfinite(t_ov) else "", repr(float(res.t_end[j, i])),
-                    info["file"], info["units_in_file"], info["units_from"] or "",
-                    repr(info["dt_s"]), info["n_points"], repr(info["duration_s"]),
-                    repr(info["pga_g"]), model["model"], model["impact"], r, args.method,
-                ]
-
-
 def _write_sweep_csv(args, sweep):
-    with open(args.out, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(SWEEP_COLUMNS)
-        w.writerows(_csv_rows(args, sweep))
+    write_csv(args.out, sweep.results, sweep.struct_labels)
 
 
 # ---------------------------------------------------------------------------- outputs

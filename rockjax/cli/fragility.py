@@ -214,32 +214,16 @@ def run(args):
 
 
 # ----------------------------------------------------------------------------- outputs
+#: the keys of the sweep's JSON that `--json` shows under "sweep"
+_SWEEP_KEYS = ("n_runs", "n_records", "n_scales", "status_counts", "wall_time_s", "tail_s",
+               "t1", "grid_dt_s", "model", "model_info", "method", "substeps", "records",
+               "record_info", "skipped_files", "scales")
+
+
 def _print_json(args, sw, fit, notes):
-    out = {
-        "fragility": fit.to_dict(),
-        "sweep": {
-            "n_runs": sw.n_runs,
-            "n_records": len(sw.rec_labels),
-            "n_scales": len(sw.scales),
-            "status_counts": sw.status_counts(),
-            "wall_time_s": sw.wall,
-            "tail_s": sw.tail,
-            "t1": sw.t1,
-            "grid_dt_s": sw.grid_dt,
-            "model": args.model,
-            "model_info": model_info(args),
-            "method": args.method,
-            "substeps": args.substeps if args.method == "rk4" else None,
-            "records": sw.rec_labels,
-            "record_info": sw.record_infos(),
-            "skipped_files": sw.skipped,
-            "scales": [float(x) for x in sw.scales],
-        },
-        "plot": args.plot,
-        "csv": args.out,
-        "warnings": sw.warnings + notes,
-    }
-    print(json.dumps(out))
+    info = sweep.sweep_json(args, sw)
+    print(json.dumps({"fragility": fit.to_dict(), "sweep": {k: info[k] for k in _SWEEP_KEYS},
+                      "plot": args.plot, "csv": args.out, "warnings": sw.warnings + notes}))
 
 
 def _interval(fit, ci, unit=""):

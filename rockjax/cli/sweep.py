@@ -1,16 +1,17 @@
 """`rockjax sweep`: peak responses over structures x scale factors x records (CSV, plot).
 
-Every combination runs through `rockjax.simulate_batch(summary_only=True)`, one batch per
+Every combination runs through `rockjax.sweep` (the library's one batch engine), one per
 structure; the stages are: check the inputs, load structures and records, run, write the
-CSV, then plot and report.
+CSV (`SweepResult.csv_rows`), then plot (`_plotting.plot_sweeps`) and report.
 
 Records may differ in time step and length: they run together on their common time step
 (each resampled exactly), and each run ends at its own record's end plus `--tail`. The
 units of each record come from its file, or from `FILE:UNITS` / a `--units` after it.
 
 With `--distributed` or `--coordinator/--num-processes/--process-id` the sweep runs as
-several `jax.distributed` processes (`_distributed`): each runs a contiguous block of the
-runs, process 0 gathers them and writes the same outputs as one process would.
+several `jax.distributed` processes (`_distributed` starts them; `rockjax.sweep(...,
+processes=)` splits and gathers the runs): process 0 writes the same outputs as one process
+would.
 """
 
 from __future__ import annotations
@@ -449,36 +450,23 @@ def _write_sweep_csv(args, sweep):
 
 
 # ---------------------------------------------------------------------------- outputs
-def _print_json(args, sweep, counts, fractions):
+def sweep_json(args, sweep):
+    """The sweep's JSON object (`--json`; `rockjax fragility` shows part of it)."""
     n_runs, wall = sweep.n_runs, sweep.wall
-    out = {
-        "n_runs": n_runs,
-        "n_structures": len(sweep.structures),
-        "n_records": len(sweep.rec_labels),
-        "n_scales": len(sweep.scales),
-        "status_counts": counts,
-        "wall_time_s": wall,
-        "runs_per_s": n_runs / wall if wall > 0 else None,
-        "processes": sweep.processes,
-        "tail_s": sweep.tail,
-        "t1": sweep.t1,
-        "grid_dt_s": sweep.grid_dt,
-        "model": args.model,
-        "model_info": model_info(args),
-        "method": args.method,
-        "substeps": args.substeps if args.method == "rk4" else None,
-        "csv": str(args.out),
-        "plot": args.plot,
-        "structures": sweep.struct_labels,
-        "records": sweep.rec_labels,
-        "record_info": sweep.record_infos(),
-        "skipped_files": sweep.skipped,
+    return {
+        "n_runs": n_runs, "n_structures": len(sweep.structures),
+        "n_records": len(sweep.rec_labels), "n_scales": len(sweep.scales),
+        "status_counts": sweep.status_counts(), "wall_time_s": wall,
+        "runs_per_s": n_runs / wall if wall > 0 else None, "processes": sweep.processes,
+        "tail_s": sweep.tail, "t1": sweep.t1, "grid_dt_s": sweep.grid_dt, "model": args.model,
+        "model_info": model_info(args), "method": args.method,
+        "substeps": args.substeps if args.method == "rk4" else None, "csv": str(args.out),
+        "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
+        "record_info": sweep.record_infos(), "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
-        "fraction_overturned": fractions,
-        "failed_by_scale": sweep.failed_by_scale(),
-        "warnings": sweep.warnings,
+        "fraction_overturned": sweep.fractions_overturned(),
+        "failed_by_scale": sweep.failed_by_scale(), "warnings": sweep.warnings,
     }
-    print(json.dumps(out))
 
 
 def _print_inputs(args, sweep):
@@ -629,7 +617,7 @@ def run(args):
                           f"{args.method}")
         fig.savefig(args.plot, dpi=150)
     if args.json:
-        _print_json(args, sweep, counts, fractions)
+        print(json.dumps(sweep_json(args, sweep)))
         return 0
     _print_report(args, sweep, counts, fractions)
     return 0

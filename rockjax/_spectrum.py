@@ -29,6 +29,7 @@ from . import pulses as _pulses
 from ._batch import simulate_batch
 from ._response import STATUS
 from ._structure import FIELDS, RockingStructure
+from ._sweep import failed_runs
 from .models import get_model
 
 #: substep length cap for the springs: omega h <= 0.5 (RK4 refuses omega h > 2.5)
@@ -37,7 +38,6 @@ _OMEGA_H = 0.5
 #: accumulate geometrically), and a run that stopped at a limit would not tell survival
 _MAX_IMPACTS = 2**30
 _OVERTURNED = STATUS["overturned"]
-_COMPLETED = STATUS["completed"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -323,7 +323,7 @@ def _progress_bar(total, enabled):
 
 
 def _failed(status):
-    return int(np.sum((status != _OVERTURNED) & (status != _COMPLETED)))
+    return int(failed_runs(status))
 
 
 def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact="paper",

@@ -57,6 +57,12 @@ def overturned_fraction(status, axis=-1):
         return np.where(usable > 0, over / np.maximum(usable, 1), np.nan)
 
 
+def failed_runs(status, axis=None):
+    """The runs that failed (max_impacts, solver_failure: neither completed nor overturned)
+    along `axis` (None: all)."""
+    return (~np.isin(np.asarray(status), USABLE)).sum(axis=axis)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class SweepResult:
     """Every record at every scale factor (`rockjax.sweep`), SI units.
@@ -135,7 +141,7 @@ class SweepResult:
 
     def failed_by_scale(self) -> np.ndarray:
         """Per scale, the number of failed runs (max_impacts, solver_failure)."""
-        return (~np.isin(self.status, USABLE)).sum(axis=0)
+        return failed_runs(self.status, axis=0)
 
     def to_dict(self) -> dict:
         """Plain Python values for JSON: the counts per status, per scale the fraction

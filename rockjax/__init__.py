@@ -32,18 +32,14 @@ from ._batch import (  # noqa: E402
     simulate_batch as simulate_batch,
     Summary as Summary,
 )
+from ._distributed import Processes as Processes  # noqa: E402
 from ._excitation import (  # noqa: E402
     AbstractExcitation as AbstractExcitation,
     FreeVibration as FreeVibration,
     GroundMotion as GroundMotion,
 )
 from ._fidelity import FidelityWarning as FidelityWarning  # noqa: E402
-from ._fragility import (  # noqa: E402
-    fragility as fragility,
-    FragilityResult as FragilityResult,
-    sweep as sweep,
-    SweepResult as SweepResult,
-)
+from ._fragility import fragility as fragility, FragilityResult as FragilityResult  # noqa: E402
 from ._intensity import (  # noqa: E402
     integrate_record as integrate_record,
     pga as pga,
@@ -80,6 +76,7 @@ from ._structure import (  # noqa: E402
     mcmanus_column as mcmanus_column,
     RockingStructure as RockingStructure,
 )
+from ._sweep import sweep as sweep, SweepResult as SweepResult  # noqa: E402
 from ._units import UnitError as UnitError, UNITS as UNITS  # noqa: E402
 from .models import (  # noqa: E402
     AbstractRestoringForce as AbstractRestoringForce,

@@ -122,12 +122,14 @@ def _records(excitation, record):
 class _Suite:
     """Records of any time steps on one grid: `table` (n_records, n) [m/s²] sampled every
     `dt` [s] (each record's samples kept, zero after its end), `lengths` its samples per
-    record and `durations` [s] each record's end."""
+    record and `durations` [s] each record's end. With `steps` (record_steps="own"), row
+    i keeps record i's own samples, every `steps[i]` [s], and `dt` is the largest step."""
 
     dt: float
     table: np.ndarray
     lengths: np.ndarray
     durations: np.ndarray
+    steps: np.ndarray | None = None
 
 
 def _suite_item(i, item):
@@ -152,19 +154,22 @@ def _suite_item(i, item):
     return float(item.dt), np.asarray(item.accel) * float(item.scale), f"record {i}"
 
 
-def _make_suite(items):
-    """The records of a sequence, resampled exactly onto their common time step."""
+def _make_suite(items, record_steps="common"):
+    """The records of a sequence, resampled exactly onto their common time step (or each
+    kept on its own step: record_steps="own")."""
     if len(items) == 0:
         raise ValueError("excitation: the sequence of records is empty")
     dts, accels, names = zip(*(_suite_item(i, x) for i, x in enumerate(items)))
-    step = common_time_step(dts, names=names)
-    grids = [on_grid(a, int(round(d / step))) for d, a in zip(dts, accels)]
+    own = record_steps == "own"
+    step = max(dts) if own else common_time_step(dts, names=names)
+    grids = list(accels) if own else [on_grid(a, int(round(d / step))) for d, a in zip(dts, accels)]
     lengths = np.array([g.size for g in grids])
     table = np.zeros((len(grids), int(lengths.max())))
     for i, g in enumerate(grids):
         table[i, : g.size] = g
     durations = np.array([d * (a.size - 1) for d, a in zip(dts, accels)])
-    return _Suite(dt=step, table=table, lengths=lengths, durations=durations)
+    return _Suite(dt=step, table=table, lengths=lengths, durations=durations,
+                  steps=np.array(dts, float) if own else None)
 
 
 def _suite_ends(suite, record, t1, tail):
@@ -194,7 +199,8 @@ def _suite_members(suite, scale, record, t1, tail):
     t_end = _suite_ends(suite, rec, t1, tail)
     if t_end.ndim == 1 and np.all(t_end == t_end[0]):
         t_end = t_end[:1]  # one end for all: the stepper needs no per-member ends
-    return {"scale": 1.0 if scale is None else scale, "record": rec, "t_end": t_end}
+    own = {} if suite.steps is None else {"dt_rec": suite.steps[rec]}  # each on its own grid
+    return {"scale": 1.0 if scale is None else scale, "record": rec, "t_end": t_end, **own}
 
 
 def _batch_length(structure, members):
@@ -214,10 +220,14 @@ def _batch_length(structure, members):
     return sizes.pop() if sizes else 1
 
 
-def _resolve(structure, excitation, scale, r, u0, v0, record, t1, tail):
+def _resolve(structure, excitation, scale, r, u0, v0, record, t1, tail, record_steps):
     """The batch: N, each per-member input as a scalar or an (N,) array, the record table,
     whether it is a free vibration, and the suite (a sequence of records) or None."""
-    suite = _make_suite(excitation) if isinstance(excitation, (list, tuple)) else None
+    seq = isinstance(excitation, (list, tuple))
+    suite = _make_suite(excitation, record_steps) if seq else None
+    if record_steps != "common" and (record_steps != "own" or not seq):
+        raise ValueError(f"record_steps must be 'common' or 'own' (with a sequence of "
+                         f"records), got {record_steps!r}")
     if suite is None:
         check_scene(structure, excitation)
         if tail is not None:
@@ -403,6 +413,7 @@ def simulate_batch(
     devices=None,
     progress=None,
     fidelity_warning=True,
+    record_steps="common",
 ):
     r"""Many simulations of Eq. 1 at once: any mix of structures, r, u0, v0, scales, records.
 
@@ -465,6 +476,12 @@ def simulate_batch(
       runs that lift off by more than 3 u_crit under the paper's SDOF models).
     - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and
       stderr is a terminal, so logs get no carriage returns).
+    - `record_steps`: with a sequence of records, `"common"` (default: resampled onto their
+      common time step, above) or `"own"`: each run on its own record's samples and step
+      (records of unrelated steps, e.g. pulses of many periods: `overturning_spectrum`);
+      summaries only, `"rk4"`/`"dopri5"`. The steps of the longest run over every record
+      of the sequence fix the compiled program, so calls on the same records with other
+      `record`/`scale` (and a `chunk_size` dividing N) reuse it.
 
     **Returns:** a `Summary`, or a `Response` whose arrays have a leading batch axis of
     length N (`impact_times` has shape (N, max_impacts)); on the grid past a run's own end
@@ -493,7 +510,10 @@ def simulate_batch(
     if isinstance(excitation, Record):  # one record, e.g. rockjax.datasets.el_centro()
         excitation = GroundMotion.from_record(excitation)
     N, members, table, free, suite = _resolve(structure, excitation, scale, r, u0, v0, record,
-                                              t1, tail)
+                                              t1, tail, record_steps)
+    if record_steps == "own" and (not summary_only or method == "diffrax"):
+        raise ValueError('record_steps="own" runs summaries only (summary_only=True) on '
+                         '"rk4" or "dopri5"')
     t_last = float(np.max(members["t_end"]))
     dtype = jnp.result_type(structure.B)
     check_float64(method, dtype)
@@ -501,7 +521,10 @@ def simulate_batch(
     # each record's samples: the ground acceleration is zero after the last one
     lengths = None if free else (suite.lengths if suite is not None else
                                  np.full(table.shape[0], table.shape[1]))
-    dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last, dt)
+    ends = None if suite is None or suite.steps is None else _suite_ends(  # every record's
+        suite, np.arange(len(suite.steps)), t1, tail)
+    dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last, dt,
+                                ends)
     n_dev = _devices(devices)
     n_out = len(grid) if ts is None else len(ts)
     chunk = _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev)
@@ -547,9 +570,10 @@ def _check_ts(ts, summary_only, t1f):
         raise ValueError(f"ts must lie within [0, t1] = [0, {t1f}]")
 
 
-def _grid(excitation, table, free, t1f, dt):
+def _grid(excitation, table, free, t1f, dt, ends=None):
     """(step [s], the grid [s], the record table padded past t1): the record's samples,
-    the common step of a suite, or dt for a free vibration."""
+    the common step of a suite, or dt for a free vibration. `ends` [s]: with records on
+    their own steps, the end of a run of each record (the longest run sets the steps)."""
     if isinstance(excitation, _Suite):
         if dt is not None:
             raise ValueError(
@@ -557,6 +581,8 @@ def _grid(excitation, table, free, t1f, dt):
                 "their common time step (use substeps to refine)"
             )
         dt_rec, n_steps = excitation.dt, int(math.ceil(t1f / excitation.dt - 1e-9))
+        if ends is not None:
+            n_steps = int(np.max(np.ceil(ends / excitation.steps - 1e-9)))
     else:
         dt_rec, n_steps = stepper_grid_step(excitation, t1f, dt)
     grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)

@@ -1,4 +1,4 @@
-r"""Fragility curves: `rockjax.sweep` (records × scales), `rockjax.fragility` (a lognormal fit).
+r"""Fragility curves: `rockjax.fragility`, a lognormal fit to a `rockjax.sweep` (`_sweep.py`).
 
 docs/fragility.md has the method, the units, the bootstrap and the checks.
 
@@ -31,10 +31,7 @@ of the gap, flagged `separated` and warned about.
 from __future__ import annotations
 
 import dataclasses
-import os
-import pathlib
 import re
-import time
 import warnings
 
 import jax
@@ -42,22 +39,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.stats import norm
 
-from ._batch import DEFAULT_TAIL, simulate_batch
-from ._excitation import GroundMotion
 from ._intensity import pga, pgd, pgv, spectral_acceleration
 from ._kinematics import theta_from_u
-from ._records import G_STANDARD, read_record, Record
+from ._records import G_STANDARD
 from ._status import STATUS, STATUS_NAMES
-from ._structure import FIELDS, RockingStructure
+from ._sweep import FAILED, SweepResult, USABLE
 from .models import get_model
 
-#: the Summary fields a SweepResult keeps, each of shape (n_records, n_scales)
-SWEEP_FIELDS = ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn", "t_end")
-#: the statuses of a run that the fit uses; the others are failures, left out and counted
-USABLE = (STATUS["completed"], STATUS["overturned"])
-FAILED = tuple(name for name, code in STATUS.items() if code not in USABLE)
-#: simulate_batch arguments that `sweep` sets itself
-_SET_BY_SWEEP = ("scale", "record", "summary_only", "ts", "excitation", "structure", "u0", "v0")
 #: the units of each intensity measure (PGA and Sa in g)
 IM_UNITS = {"PGA": "g", "PGV": "m/s", "PGD": "m", "Sa": "g", "scale": "-"}
 _SA = re.compile(r"^\s*sa\s*\(\s*(?:t\s*=\s*)?([0-9.eE+-]+)\s*s?\s*\)\s*$", re.I)
@@ -69,197 +57,6 @@ _NEWTON_ITERATIONS = 60
 _GRAD_TOL = 1e-9
 #: the fit pads the runs to a multiple of this (one compilation for similar sizes)
 _PAD = 256
-
-
-# ------------------------------------------------------------------------------- sweep
-def overturned_fraction(status, axis=-1):
-    """The fraction overturned along `axis` among the runs that completed or overturned
-    (failed runs left out); NaN where no run did."""
-    status = np.asarray(status)
-    usable = np.isin(status, USABLE).sum(axis=axis)
-    over = (status == STATUS["overturned"]).sum(axis=axis)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(usable > 0, over / np.maximum(usable, 1), np.nan)
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class SweepResult:
-    """Every record at every scale factor (`rockjax.sweep`), SI units.
-
-    - `structure`, `model` (as given to `sweep`), `impact`; `records` (the `Record`s or
-      `GroundMotion`s run, which `fragility` takes its intensity measures from), `labels`
-      (one per record), `scales` (n_scales,).
-    - `peak_u` [m], `peak_uplift` [m], `n_impacts`, `status` (0 completed, 1 overturned,
-      2 max_impacts, 3 solver_failure; `rockjax.STATUS`), `t_overturn` [s], `t_end` [s]:
-      arrays of shape (n_records, n_scales), as `rockjax.Summary`.
-    - `tail`, `t1` [s] and `options` (the other `simulate_batch` arguments), `wall_time` [s].
-    """
-
-    structure: RockingStructure
-    records: tuple
-    labels: tuple
-    scales: np.ndarray
-    peak_u: np.ndarray
-    peak_uplift: np.ndarray
-    n_impacts: np.ndarray
-    status: np.ndarray
-    t_overturn: np.ndarray
-    t_end: np.ndarray
-    model: object = "simplified"
-    impact: str = "paper"
-    tail: float | None = DEFAULT_TAIL
-    t1: float | None = None
-    options: dict = dataclasses.field(default_factory=dict)
-    wall_time: float = 0.0
-
-    def __post_init__(self):
-        set_ = object.__setattr__
-        set_(self, "records", tuple(self.records))
-        set_(self, "labels", tuple(str(x) for x in self.labels))
-        set_(self, "scales", _check_scales(self.scales))
-        shape = (len(self.records), self.scales.size)
-        if len(self.labels) != shape[0]:
-            raise ValueError(f"labels: {len(self.labels)} for {shape[0]} records")
-        for name in SWEEP_FIELDS:
-            a = np.asarray(getattr(self, name))
-            if a.shape != shape:
-                raise ValueError(f"{name} must have shape (n_records, n_scales) = {shape}, "
-                                 f"got {a.shape}")
-            set_(self, name, a.astype(np.int64) if name in ("status", "n_impacts") else a)
-
-    @property
-    def n_records(self) -> int:
-        return len(self.records)
-
-    @property
-    def n_scales(self) -> int:
-        return int(self.scales.size)
-
-    @property
-    def n_runs(self) -> int:
-        return self.n_records * self.n_scales
-
-    @property
-    def model_name(self) -> str:
-        return self.model if isinstance(self.model, str) else type(self.model).__name__
-
-    def __repr__(self):
-        counts = ", ".join(f"{k} {v}" for k, v in self.status_counts().items() if v)
-        return (f"SweepResult({self.n_records} records x {self.n_scales} scales, model "
-                f"{self.model_name!r}: {counts})")
-
-    def status_counts(self) -> dict[str, int]:
-        """Runs per status name (every name of `rockjax.STATUS`, zeros included)."""
-        return {name: int(np.sum(self.status == code)) for name, code in STATUS.items()}
-
-    def fraction_overturned(self) -> np.ndarray:
-        """Per scale, the fraction of the records that overturned, among the runs that
-        completed or overturned (failed runs left out; NaN at a scale where every run
-        failed)."""
-        return overturned_fraction(self.status, axis=0)
-
-    def failed_by_scale(self) -> np.ndarray:
-        """Per scale, the number of failed runs (max_impacts, solver_failure)."""
-        return (~np.isin(self.status, USABLE)).sum(axis=0)
-
-
-def _check_structure(structure):
-    if not isinstance(structure, RockingStructure):
-        raise TypeError(f"structure must be a RockingStructure, got {type(structure).__name__}")
-    batched = [f for f in FIELDS if np.ndim(getattr(structure, f)) != 0]
-    if batched:
-        raise ValueError(f"structure: one structure (scalar fields), got arrays in "
-                         f"{', '.join(batched)}; sweep one structure at a time")
-
-
-def _check_scales(scales):
-    try:
-        sc = np.array(scales, dtype=float).reshape(-1) if np.ndim(scales) <= 1 else None
-    except (TypeError, ValueError):
-        raise ValueError(f"scales must be positive numbers, got {scales!r}") from None
-    if sc is None or sc.size == 0 or not np.all(np.isfinite(sc)) or np.any(sc <= 0):
-        raise ValueError(f"scales must be a non-empty 1-D list of positive finite numbers, "
-                         f"got {scales!r}")
-    return sc
-
-
-def _unique(labels):
-    """Labels made unique with a #k suffix where they repeat."""
-    out = []
-    for i, lab in enumerate(labels):
-        k = labels[:i].count(lab)
-        out.append(f"{lab}#{k + 1}" if k or labels.count(lab) > 1 else lab)
-    return tuple(out)
-
-
-def _as_records(records, labels):
-    """(Records or GroundMotions, labels) of `records`: one or a sequence of Records,
-    single-record GroundMotions and paths (read with `rockjax.read_record`)."""
-    if isinstance(records, (Record, GroundMotion, str, os.PathLike)):
-        records = [records]
-    try:
-        items = list(records)
-    except TypeError:
-        raise TypeError(f"records must be a sequence of Records, GroundMotions or paths, got "
-                        f"{type(records).__name__}") from None
-    if not items:
-        raise ValueError("records: the sequence is empty")
-    out, names = [], []
-    for i, item in enumerate(items):
-        if isinstance(item, (str, os.PathLike)):
-            item = read_record(item)
-        if isinstance(item, GroundMotion) and (np.ndim(item.accel) != 1 or np.ndim(item.scale)):
-            raise ValueError(f"records: GroundMotion {i} must hold one record (1-D accel)")
-        if not isinstance(item, (Record, GroundMotion)):
-            raise TypeError(f"records: item {i} is a {type(item).__name__}, not a Record, "
-                            "GroundMotion or path")
-        out.append(item)
-        src = getattr(item, "source", "")
-        names.append(pathlib.Path(src).stem if src else f"record {i}")
-    if labels is None:
-        return tuple(out), _unique(names)
-    labels = [str(x) for x in labels]
-    if len(labels) != len(out):
-        raise ValueError(f"labels: {len(labels)} labels for {len(out)} records")
-    return tuple(out), tuple(labels)
-
-
-def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, t1=None,
-          labels=None, **options) -> SweepResult:
-    """Every record at every scale factor: `rockjax.simulate_batch(summary_only=True)`.
-
-    **Arguments:** `structure`, one `RockingStructure`; `records`, a sequence of
-    `rockjax.Record`s, single-record `GroundMotion`s (their own scale applied) or paths
-    (read with `rockjax.read_record`, units from the file), of any time steps and lengths;
-    `scales` (n_scales,) factors on every record; `model` (default `"simplified"`, as
-    `simulate_batch` and `rockjax sweep`; `"rigid_body"` is the one recommended for
-    fragility, docs/models.md); each run lasts its record plus `tail` [s] (capped at
-    `t1` [s] if given); `labels` (default: the file names); `**options`: the other
-    keyword arguments of `simulate_batch` (`impact`, `r`, `method`, `substeps`,
-    `max_impacts`, `progress`, `fidelity_warning`, ...).
-
-    **Returns:** a `SweepResult`, arrays of shape (n_records, n_scales).
-
-    **Example:** `rockjax.sweep(rockjax.mcmanus_column(), ["IELC180.AT2", "elCentro.AT2"],
-    np.linspace(0.2, 3.0, 40), model="rigid_body")`.
-    """
-    _check_structure(structure)
-    recs, labs = _as_records(records, labels)
-    sc = _check_scales(scales)
-    clash = [k for k in options if k in _SET_BY_SWEEP]
-    if clash:
-        raise TypeError(f"sweep sets {', '.join(clash)} itself (every record at every scale, "
-                        "summaries only); use simulate_batch for other batches")
-    n_r, n_s = len(recs), sc.size
-    k = np.arange(n_r * n_s)  # scale-major, as `rockjax sweep`: scale k // n_r, record k % n_r
-    t0 = time.perf_counter()
-    out = simulate_batch(structure, list(recs), t1, tail=tail, scale=sc[k // n_r],
-                         record=k % n_r, model=model, summary_only=True, **options)
-    wall = time.perf_counter() - t0
-    fields = {f: np.asarray(getattr(out, f)).reshape(n_s, n_r).T.copy() for f in SWEEP_FIELDS}
-    return SweepResult(structure=structure, records=recs, labels=labs, scales=sc, model=model,
-                       impact=options.get("impact", "paper"), tail=tail, t1=t1,
-                       options=dict(options), wall_time=wall, **fields)
 
 
 # ------------------------------------------------------------------ IM and limit state

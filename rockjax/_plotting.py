@@ -173,3 +173,89 @@ def _status_text(code):
 
     name = STATUS_NAMES.get(int(code), "?")
     return "OVERTURNED" if name == "overturned" else name.replace("_", " ")
+
+
+# ------------------------------------------------------------------------------ sweeps
+def _sweep_lines(ax_u, xs, order, res, lab_s, many, style):
+    """Peak |u| of one sweep, one line per record (overturned runs as x at u_overturn,
+    other failures as open squares). Returns (any overturned, any other failure, the
+    failed runs as a boolean (n_records, n_scales) array in scale order)."""
+    from ._status import STATUS
+
+    status, peak = res.status[:, order], 1e3 * res.peak_u[:, order]
+    over = status == STATUS["overturned"]
+    other = ~over & (status != STATUS["completed"])
+    u_ov = 1e3 * float(res.structure.u_overturn)
+    for ri, lab_r in enumerate(res.labels):
+        color = f"C{ri % 10}"
+        ax_u.plot(xs, np.where(over[ri], np.nan, peak[ri]), style, marker="o", ms=3, lw=1.2,
+                  color=color, label=f"{lab_s} / {lab_r}" if many else lab_r)
+        if over[ri].any():
+            ax_u.plot(xs[over[ri]], np.full(int(over[ri].sum()), u_ov), "x", ms=8, mew=1.6,
+                      color=color)
+        if other[ri].any():
+            ax_u.plot(xs[other[ri]], peak[ri, other[ri]], "s", ms=7, mfc="none", color=color)
+    return over.any(), other.any(), other
+
+
+def _overturn_levels(ax_u, results, labels):
+    """One dashed line per distinct u_overturn, labelled with its structures when several."""
+    import math
+
+    levels = {}
+    for res, lab_s in zip(results, labels):
+        u_ov = float(res.structure.u_overturn)
+        key = next((k for k in levels if math.isclose(k, u_ov, rel_tol=1e-9)), None)
+        levels.setdefault(u_ov if key is None else key, []).append(lab_s)
+    for u_ov, labs in levels.items():
+        label = "u_overturn" if len(levels) == 1 else f"u_overturn ({', '.join(labs)})"
+        ax_u.axhline(1e3 * u_ov, color="0.45", lw=0.9, ls=(0, (5, 3)), label=label)
+
+
+def _peak_legend(ax_u, any_over, any_other, n_lines):
+    """The legend of the peak panel, with the marker keys; none beyond 24 lines."""
+    handles, labels = ax_u.get_legend_handles_labels()
+    if any_over:
+        handles.append(ax_u.plot([], [], "x", color="k", ms=8, mew=1.6)[0])
+        labels.append("overturned (at u_overturn)")
+    if any_other:
+        handles.append(ax_u.plot([], [], "s", color="k", ms=7, mfc="none")[0])
+        labels.append("max_impacts / solver_failure")
+    if n_lines <= 24:
+        ax_u.legend(handles, labels, fontsize=7, ncol=2 if len(labels) > 6 else 1, loc="upper left")
+
+
+def plot_sweeps(results, labels, *, title=None):
+    """Peak |u| against scale (one line per structure x record; overturned runs as x at
+    u_overturn) over the fraction overturned against scale (per structure, of the runs
+    that completed or overturned; the fraction that failed, left out, as a grey line).
+
+    `results`: `rockjax.SweepResult`s of the same records and scales, one per structure,
+    `labels` their names. Returns a matplotlib Figure (no pyplot)."""
+    x = np.asarray(results[0].scales, float)
+    order = np.argsort(x, kind="stable")
+    fig = new_figure(figsize=(8.5, 7.5), layout="constrained")
+    ax_u, ax_f = fig.subplots(2, 1, sharex=True)
+    styles, many, any_over, any_other = ["-", "--", ":", "-."], len(results) > 1, False, False
+    for si, (res, lab_s) in enumerate(zip(results, labels)):
+        o, f, other = _sweep_lines(ax_u, x[order], order, res, lab_s, many, styles[si % 4])
+        any_over, any_other = any_over or o, any_other or f
+        ax_f.plot(x[order], res.fraction_overturned()[order], styles[si % 4], marker="o", ms=4,
+                  color=f"C{si % 10}", label=lab_s)
+        if other.any():  # the failed runs, left out of the fraction
+            ax_f.plot(x[order], np.mean(other, axis=0), styles[si % 4], marker="s", ms=4,
+                      mfc="none", lw=0.8, color="0.5", label=f"{lab_s}: fraction failed "
+                      "(left out)" if many else "fraction failed (left out)")
+    _overturn_levels(ax_u, results, labels)
+    _peak_legend(ax_u, any_over, any_other, sum(r.n_records for r in results))
+    ax_u.set_ylabel("peak |u| [mm]")
+    ax_u.set_title(title or "peak displacement against scale", fontsize=10)
+    ax_f.set_ylim(-0.03, 1.03)
+    ax_f.set_ylabel(f"fraction overturned (of {results[0].n_records}\nrecord(s), failed runs "
+                    "left out)")
+    ax_f.set_xlabel("scale factor on the records")
+    if many or any_other:
+        ax_f.legend(fontsize=8)
+    for ax in (ax_u, ax_f):
+        ax.grid(alpha=0.3)
+    return fig

@@ -2,7 +2,8 @@ r"""`rockjax.overturning_spectrum`: the smallest pulse amplitude that overturns 
 
 For each pulse period (a rectangular pulse: its duration) the lowest amplitude [m/s²] of a
 `rockjax.pulses` pulse that overturns the structure, found by batches of runs on the rk4
-stepper: a scan of `n_scan` amplitudes per period, geometric from 0.25 to
+stepper (`rockjax.simulate_batch` with `record_steps="own"`: each period's pulse on its
+own sample step): a scan of `n_scan` amplitudes per period, geometric from 0.25 to
 $4\max(1, x)$ times $g\tan\alpha$ ($x = \omega_p/p$, or $1/(p\,t_1)$ for a rectangular
 pulse; widened upwards where nothing overturns), then multisection of the bracket below
 the lowest overturning amplitude, every period in one batch per round, until the bracket
@@ -18,16 +19,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 
-import jax.numpy as jnp
+import jax
 import numpy as np
 
 from . import pulses as _pulses
-from ._batch import _devices, _Plan, _progress, _run_chunks
+from ._batch import simulate_batch
 from ._response import STATUS
 from ._structure import FIELDS, RockingStructure
-from .integrators import StepperConfig
+from ._sweep import failed_runs
 from .models import get_model
 
 #: substep length cap for the springs: omega h <= 0.5 (RK4 refuses omega h > 2.5)
@@ -36,7 +38,6 @@ _OMEGA_H = 0.5
 #: accumulate geometrically), and a run that stopped at a limit would not tell survival
 _MAX_IMPACTS = 2**30
 _OVERTURNED = STATUS["overturned"]
-_COMPLETED = STATUS["completed"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +110,19 @@ class OverturningSpectrum:
             "n_failed": self.n_failed, "wall_time_s": self.wall_time,
         }
 
+    def to_csv(self, path):
+        """One row per period, header `period_s,x_-,amplitude_m/s2,normalised_-,
+        amplitude_no_impact_m/s2,bracket_lo_m/s2,bracket_hi_m/s2` (SI units; nan where
+        nothing overturned)."""
+        cols = {"period": (self.periods, "s"), "x": (self.x, "-"),
+                "amplitude": (self.amplitude, "m/s2"), "normalised": (self.normalised, "-"),
+                "amplitude_no_impact": (self.amplitude_no_impact, "m/s2"),
+                "bracket_lo": (self.bracket[:, 0], "m/s2"),
+                "bracket_hi": (self.bracket[:, 1], "m/s2")}
+        np.savetxt(path, np.column_stack([v for v, _ in cols.values()]), delimiter=",",
+                   header=",".join(f"{k}_{u}" for k, (_, u) in cols.items()), comments="",
+                   fmt="%.10g")
+
     def plot(self, ax=None, label=None):
         """amplitude / ($g\\tan\\alpha$) against `x` (matplotlib; returns the axes): the
         lowest overturning amplitude, and the no-impact mode where it is higher."""
@@ -170,53 +184,43 @@ def _check_options(rtol, n_scan, max_ratio, t_free):
 
 @dataclasses.dataclass(frozen=True)
 class _Runner:
-    """Runs of the spectrum's pulses: period i's pulse is row i of `table`, sampled every
-    `dt[i]` [s], and its run ends at `t_end[i]` [s]; every call goes through
-    `simulate_batch`'s chunk loop (`plan.chunk` members a call: one compiled program), each
-    member on its own grid step."""
+    """Runs of the spectrum's pulses through `rockjax.simulate_batch`: period i's pulse is
+    record i of `pulses`, on its own sample step `dt[i]` [s] (record_steps="own"), and its
+    run ends at `t_end[i]` [s]; every call is padded to a multiple of `chunk` members, so
+    that every round reuses one compiled program."""
 
-    plan: _Plan
-    shared: dict
-    table: jnp.ndarray
-    lengths: jnp.ndarray
+    structure: RockingStructure
+    pulses: tuple
+    options: dict
+    chunk: int
     dt: np.ndarray
     t_end: np.ndarray
 
     def __call__(self, idx, amp):
         """(status, n_impacts) of the runs of period `idx` at amplitude `amp` [m/s²]."""
-        values = {"record": idx, "scale": amp, "dt_rec": self.dt[idx], "t_end": self.t_end[idx]}
-        out = _run_chunks(self.plan, len(idx), list(values), values, self.shared,
-                          (self.table, self.lengths), None, self.table.dtype, False)
-        return out["status"], out["n_impacts"]
+        n = len(idx)
+        pad = (-n) % self.chunk  # the last run again: no new shapes, no new compilation
+        out = simulate_batch(self.structure, list(self.pulses),
+                             record=np.concatenate([idx, np.repeat(idx[-1:], pad)]),
+                             scale=np.concatenate([amp, np.repeat(amp[-1:], pad)]),
+                             chunk_size=self.chunk, **self.options)
+        return np.asarray(out.status)[:n], np.asarray(out.n_impacts)[:n]
 
 
-def _runner(structure, model, kind, T, t_free, substeps, devices, n_members, r):
+def _runner(structure, model, impact, kind, T, t_free, substeps, devices, n_members, r):
     """The `_Runner` of one spectrum: each period's pulse on a grid of at most
     `rockjax.pulses.MAX_DT` and of omega h <= 0.5 per substep (the springs)."""
-    dtype = jnp.result_type(structure.B)
-    s = structure.evaluated()
-    omega = float(model.frequency(s))
+    omega = float(get_model(model, impact).frequency(structure.evaluated()))
     max_dt = min(_pulses.MAX_DT, substeps * _OMEGA_H / omega)
-    rows = [_pulses.pulse(kind, 1.0, t, max_dt=max_dt) for t in T]
-    dt = np.array([float(g.dt) for g in rows])
-    lengths = np.array([g.accel.shape[-1] for g in rows])
-    table = np.zeros((len(rows), int(lengths.max())))
-    for i, g in enumerate(rows):
-        table[i, : lengths[i]] = np.asarray(g.accel)
-    t_end = T + t_free
-    n_steps = int(np.max(np.ceil(t_end / dt - 1e-9)))
-    cfg = StepperConfig(method="rk4", substeps=substeps, n_steps=n_steps, forced=True,
-                        full=False, max_impacts=_MAX_IMPACTS,
-                        max_pieces=model.default_max_pieces(), rtol=1e-8, atol=1e-10)
-    n_dev = _devices(devices)
-    plan = _Plan(model=model, method="rk4", free=False, dt_rec=float(dt.max()),
-                 t1=float(t_end.max()), grid=None, cfg=cfg, n_devices=n_dev,
-                 chunk=n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev))
-    shared = {k: jnp.asarray(getattr(structure, k), dtype) for k in FIELDS}
-    shared.update(u0=jnp.zeros((), dtype), v0=jnp.zeros((), dtype),
-                  r=jnp.asarray(structure.restitution if r is None else r, dtype))
-    return _Runner(plan=plan, shared=shared, table=jnp.asarray(table, dtype),
-                   lengths=jnp.asarray(lengths, jnp.int32), dt=dt, t_end=t_end)
+    pulses = tuple(_pulses.pulse(kind, 1.0, t, max_dt=max_dt) for t in T)
+    dt = np.array([float(g.dt) for g in pulses])
+    n_dev = len(jax.local_devices()) if devices is None else max(1, int(devices))
+    options = dict(tail=t_free, model=model, impact=impact, r=r, method="rk4",
+                   substeps=substeps, max_impacts=_MAX_IMPACTS, summary_only=True,
+                   record_steps="own", devices=devices, progress=False, fidelity_warning=False)
+    return _Runner(structure=structure, pulses=pulses, options=options,
+                   chunk=n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev), dt=dt,
+                   t_end=T + t_free)
 
 
 _BRACKET, _UP, _DOWN, _DONE, _NONE = range(5)
@@ -309,8 +313,17 @@ def _search(runner, search, scan, m, bar, max_rounds=60):
     return n_runs, n_failed
 
 
+def _progress_bar(total, enabled):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc="overturning spectrum", unit="run", file=sys.stderr,
+                leave=False)
+
+
 def _failed(status):
-    return int(np.sum((status != _OVERTURNED) & (status != _COMPLETED)))
+    return int(failed_runs(status))
 
 
 def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact="paper",
@@ -348,15 +361,16 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact
     _check_options(rtol, n_scan, max_ratio, t_free)
     if not (isinstance(substeps, int) and substeps >= 1):
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
-    mdl = get_model(model, impact)
+    get_model(model, impact)  # the model and impact rule checked before any run
     p = frequency_parameter(structure)
     gta = float(structure.g * structure.B / structure.H_c)
     t_free = 20.0 / p if t_free is None else float(t_free)
     x = 1.0 / (p * T) if kind == "rectangular" else 2 * np.pi / (p * T)
     scan = gta * np.geomspace(0.25, 4.0 * np.maximum(1.0, x), n_scan, axis=-1)
-    runner = _runner(structure, mdl, kind, T, t_free, substeps, devices, T.size * n_scan, r)
+    runner = _runner(structure, model, impact, kind, T, t_free, substeps, devices,
+                     T.size * n_scan, r)
     search = _Search.start(T.size, float(rtol), (1e-3 * gta, max_ratio * gta))
-    bar = _progress(3 * T.size * n_scan, progress, "overturning spectrum")
+    bar = _progress_bar(3 * T.size * n_scan, progress)
     try:
         n_runs, n_failed = _search(runner, search, scan, max(4, n_scan // 2), bar)
     finally:

@@ -111,6 +111,32 @@ def test_sweep_is_simulate_batch_per_record_and_scale(simulated, column, records
     assert s.model == "rigid_body" and s.options["max_impacts"] == MAX_IMPACTS
 
 
+def test_sweep_csv_plot_and_process_blocks(simulated, tmp_path):
+    """`SweepResult.to_csv` writes the rows of `rockjax sweep --out` (scale-major, then
+    record; statuses as names), `plot()` the two panels; `Processes.block` splits n runs
+    into contiguous blocks that differ by at most one and cover every run once."""
+    import csv
+
+    path = tmp_path / "sweep.csv"
+    simulated.to_csv(path, label="column")
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == simulated.n_runs and rows[0]["structure"] == "column"
+    assert [r["record"] for r in rows[:4]] == list(simulated.labels)
+    assert [float(r["scale"]) for r in rows[::4]] == simulated.scales.tolist()
+    assert [float(r["peak_u_m"]) for r in rows[4:8]] == simulated.peak_u[:, 1].tolist()
+    assert [r["status"] for r in rows[:4]] == simulated.status_names()[:, 0].tolist()
+    assert rows[0]["model"] == "rigid_body" and rows[0]["impact"] == "landings"
+    assert rows[0]["r"] == "Eq 3" and rows[0]["method"] == "rk4"
+    fig = simulated.plot(title="t")
+    assert len(fig.axes) == 2 and fig.axes[0].get_title() == "t"
+    for n, count in ((12, 2), (7, 3), (2, 3)):
+        blocks = [rockjax.Processes(i, count).block(n) for i in range(count)]
+        assert blocks[0][0] == 0 and blocks[-1][1] == n
+        assert all(a[1] == b[0] for a, b in zip(blocks, blocks[1:]))
+        assert max(hi - lo for lo, hi in blocks) - min(hi - lo for lo, hi in blocks) <= 1
+
+
 def test_sweep_fraction_leaves_failed_runs_out(simulated):
     st = simulated.status
     over, usable = (st == 1).sum(0), np.isin(st, (0, 1)).sum(0)

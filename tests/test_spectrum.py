@@ -351,3 +351,29 @@ def test_cli_spectrum_errors():
                       (("--pulse", "square", "--periods", "1"), "--pulse")]:
         err = _cli(*args, fail=True)
         assert msg in err, (args, err)
+
+
+def test_simulate_batch_records_on_their_own_steps():
+    """`simulate_batch(record_steps="own")` (the spectrum's engine): pulses of unrelated
+    sample steps in one batch, each run on its own pulse's grid, give the summaries of the
+    same pulse run alone (its grid is the common one then), bit for bit in the status and
+    impacts; the mode is refused where it does not apply."""
+    s = rockjax.mcmanus_column()
+    pulses = [rockjax.pulses.one_sine(1.0, 0.3, steps=30), rockjax.pulses.one_sine(1.0, 0.7,
+                                                                                    steps=50)]
+    assert pulses[0].dt != pulses[1].dt
+    amp = np.array([2.0, 6.0, 2.0, 6.0])
+    rec = np.array([0, 0, 1, 1])
+    out = rockjax.simulate_batch(s, pulses, record=rec, scale=amp, tail=0.5, model="rigid_body",
+                                 summary_only=True, record_steps="own")
+    for k in range(4):
+        one = rockjax.simulate_batch(s, [pulses[rec[k]]], scale=amp[k], tail=0.5,
+                                     model="rigid_body", summary_only=True)
+        assert int(out.status[k]) == int(one.status[0])
+        assert int(out.n_impacts[k]) == int(one.n_impacts[0])
+        np.testing.assert_allclose(out.peak_u[k], one.peak_u[0], rtol=1e-9)
+        np.testing.assert_allclose(out.t_end[k], one.t_end[0], rtol=1e-12)
+    with pytest.raises(ValueError, match="summaries only"):
+        rockjax.simulate_batch(s, pulses, record_steps="own")
+    with pytest.raises(ValueError, match="record_steps must be"):
+        rockjax.simulate_batch(s, pulses[0], 1.0, record_steps="own", summary_only=True)

@@ -364,7 +364,7 @@ def test_fraction_overturned_leaves_failed_runs_out(sweep, monkeypatch, tmp_path
     counted as survivors."""
     import functools
 
-    monkeypatch.setattr(rockjax, "simulate_batch",
+    monkeypatch.setattr(rockjax._sweep, "simulate_batch",  # the engine behind every sweep
                         functools.partial(rockjax.simulate_batch, max_impacts=14))
     csv_path, png = tmp_path / "out.csv", tmp_path / "out.png"
     rc, out, err = _main(sweep["base"] + ["--out", str(csv_path), "--plot", str(png), "--json"])
@@ -395,11 +395,12 @@ def test_fraction_overturned_leaves_failed_runs_out(sweep, monkeypatch, tmp_path
 
 
 def test_fractions_unit():
-    """`_Sweep.fractions_overturned`: over completed + overturned; None where all failed."""
-    from rockjax.cli.sweep import _Sweep
-
-    sw = _Sweep(structures=[None], struct_labels=["s"], records=[], rec_labels=["a", "b", "c"],
-                scales=np.array([1.0, 2.0, 3.0]), tail=0.0, t1=None)
-    sw.results = [{"status": np.array([[0, 2, 0], [1, 0, 3], [2, 3, 2]])}]
-    assert sw.fractions_overturned() == {"s": [0.0, 0.5, None]}
-    assert sw.failed_by_scale() == {"s": [1, 1, 3]}
+    """`SweepResult.fraction_overturned` (the CLI's fractions): over completed + overturned;
+    None where all failed. Records x scales, as every sweep."""
+    status = np.array([[0, 1, 2], [2, 0, 3], [0, 3, 2]])  # (n_records, n_scales)
+    z = np.zeros(status.shape)
+    res = rockjax.SweepResult(structure=rockjax.mcmanus_column(), records=[None] * 3,
+                              labels=["a", "b", "c"], scales=[1.0, 2.0, 3.0], peak_u=z,
+                              peak_uplift=z, n_impacts=z, status=status, t_overturn=z, t_end=z)
+    assert res.to_dict()["fraction_overturned"] == [0.0, 0.5, None]
+    assert res.failed_by_scale().tolist() == [1, 1, 3]

@@ -1,5 +1,5 @@
-"""`jax.distributed` for the command line: the flags, starting and stopping the processes,
-and the collectives a sweep needs (split the runs, agree on the inputs, gather results).
+"""`jax.distributed` for the command line: the flags, starting and stopping the processes
+(the split of the runs and the gathers are `rockjax.Processes`, used by `rockjax.sweep`).
 
 A plain command never connects anywhere. Only `--distributed` (JAX reads the cluster's
 environment: SLURM, Open MPI, ...) or the three flags `--coordinator`, `--num-processes`
@@ -21,9 +21,10 @@ import socket
 import sys
 import time
 
-import numpy as np
+import rockjax
+from rockjax._distributed import ProcessError
 
-from ._common import _first_line, _positive_int, CLIError, EXIT_USAGE
+from ._common import _positive_int, CLIError, EXIT_USAGE
 
 #: how long a process waits for the coordinator and the others by default [s] (JAX's 300)
 DEFAULT_TIMEOUT = 300.0
@@ -123,66 +124,24 @@ def requested(args):
 
 # ------------------------------------------------------------------------------ start
 @dataclasses.dataclass
-class Cluster:
-    """This process's place among `count` processes (one process, not connected: 0 of 1)."""
+class Cluster(rockjax.Processes):
+    """`rockjax.Processes` (the block split and the gathers) and the command's connection:
+    stdout sent to stderr while connected, and a prompt exit when a process was lost."""
 
-    index: int = 0
-    count: int = 1
-    active: bool = False
     #: undoes the redirection of stdout to stderr held while connected
     quiet: contextlib.ExitStack | None = dataclasses.field(default=None, repr=False)
     #: why a collective failed (another process died): then `stop` leaves at once
     lost: str | None = None
 
-    def block(self, n, index=None):
-        """[lo, hi) of this process's (or process `index`'s) runs among n: contiguous, by
-        process index, sizes differing by at most one."""
-        p = self.index if index is None else index
-        return n * p // self.count, n * (p + 1) // self.count
-
-    def agree(self, fingerprint, error):
-        """Every process checks its inputs against the others': re-raises this process's
-        `error`, or names the processes that failed or read different inputs."""
-        fp = np.array([[0 if error is None else 1], [fingerprint or 0]], np.int64)
-        everyone = self.gather(fp, self.count, error)
-        if len(set(everyone[1].tolist())) > 1:
-            raise CLIError(
-                "the processes read different inputs (structures, records or scales); every "
-                "process needs the same files and the same command line"
-            )
-
-    def gather(self, part, n, error=None):
-        """Every process's block of `part` (rows x runs of its block, float or int), joined
-        into rows x n on every process. Row 0 is a flag: nonzero where a process failed; the
-        error is raised here on that process, a one-line CLIError on the others."""
-        if not self.active:
-            if error is not None:
-                raise error
-            return part
-        sizes = [hi - lo for lo, hi in (self.block(n, p) for p in range(self.count))]
-        width = max(sizes)
-        padded = np.zeros((part.shape[0], width), part.dtype)
-        padded[:, : part.shape[1]] = part
-        from jax.experimental import multihost_utils
-
+    @contextlib.contextmanager
+    def collective(self):
+        """A failed collective as a one-line CLIError (a lost process noted for `stop`)."""
         try:
-            full = np.asarray(multihost_utils.process_allgather(padded))
-        except Exception as e:  # noqa: BLE001 - gloo: "Connection closed by peer"
-            self.lost = (
-                f"process {self.index} of {self.count}: gathering from the other processes "
-                f"failed ({_first_line(e)}); another process has ended or lost its "
-                "connection, see its output"
-            )
-            raise CLIError(self.lost) from None
-        if error is not None:
-            raise error
-        failed = [p for p in range(self.count) if full[p, 0].any()]
-        if failed:
-            whose = "its error message" if len(failed) == 1 else "their error messages"
-            raise CLIError(
-                f"process {', '.join(map(str, failed))} of {self.count} failed; see {whose}"
-            )
-        return np.concatenate([full[p, :, :k] for p, k in enumerate(sizes)], axis=1)
+            yield
+        except ProcessError as e:
+            if e.lost:
+                self.lost = str(e)
+            raise CLIError(str(e)) from None
 
     def stop(self):
         """Leave jax.distributed (every process waits for the others here); stdout is
@@ -225,7 +184,7 @@ def start(args):
     except BaseException as e:
         quiet.close()
         raise _start_error(e, args) from None
-    return Cluster(jax.process_index(), jax.process_count(), True, quiet)
+    return Cluster(jax.process_index(), jax.process_count(), True, quiet=quiet)
 
 
 def _start_error(e, args):

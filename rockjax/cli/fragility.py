@@ -1,7 +1,7 @@
 """`rockjax fragility`: a lognormal fragility curve fitted to a sweep of records x scales.
 
 Built on `rockjax sweep`: the same record, scale and run arguments (`sweep`'s argument
-groups) and the same batches (`sweep._run_batches`, one process), then
+groups) and the same engine (`rockjax.sweep`, one process), then
 `rockjax.fragility` on the result: the median and beta by maximum likelihood with a
 bootstrap band over the records, reported as text, --json and a --plot (docs/fragility.md).
 """
@@ -17,9 +17,9 @@ import numpy as np
 
 import rockjax
 from rockjax import _plotting
-from rockjax._fragility import parse_im, parse_limit, SWEEP_FIELDS, SweepResult
+from rockjax._fragility import parse_im, parse_limit
 
-from . import _distributed, sweep
+from . import sweep
 from ._common import (
     _check_out_dir,
     _check_png,
@@ -169,24 +169,6 @@ def _check_args(args):
     _check_out_dir("--out", args.out)
 
 
-def sweep_result(args, sw):
-    """The `rockjax.SweepResult` of the CLI's sweep (one structure)."""
-    res = sw.results[0]
-    return SweepResult(
-        structure=sw.structures[0],
-        records=sw.records,
-        labels=sw.rec_labels,
-        scales=sw.scales,
-        model=args.model,
-        impact=args.impact,
-        tail=sw.tail,
-        t1=sw.t1,
-        options={"method": args.method, "substeps": args.substeps, "r": args.r},
-        wall_time=sw.wall,
-        **{f: np.asarray(res[f]).T for f in SWEEP_FIELDS},
-    )
-
-
 def _fit(args, result):
     """`rockjax.fragility` with its warnings collected; errors in CLI syntax."""
     with warnings.catch_warnings(record=True) as caught:
@@ -215,8 +197,8 @@ def run(args):
     """The sweep (records x scales, one structure), then the fit: text, --json, --plot."""
     _check_args(args)
     sw = sweep._read_sweep(args)
-    sweep._run_batches(args, sw, _distributed.Cluster())
-    fit, notes = _fit(args, sweep_result(args, sw))
+    sweep._run_batches(args, sw)
+    fit, notes = _fit(args, sw.results[0])
     for note in notes:
         if not args.json:
             print(f"warning: {note}", file=sys.stderr)
@@ -232,32 +214,16 @@ def run(args):
 
 
 # ----------------------------------------------------------------------------- outputs
+#: the keys of the sweep's JSON that `--json` shows under "sweep"
+_SWEEP_KEYS = ("n_runs", "n_records", "n_scales", "status_counts", "wall_time_s", "tail_s",
+               "t1", "grid_dt_s", "model", "model_info", "method", "substeps", "records",
+               "record_info", "skipped_files", "scales")
+
+
 def _print_json(args, sw, fit, notes):
-    out = {
-        "fragility": fit.to_dict(),
-        "sweep": {
-            "n_runs": sw.n_runs,
-            "n_records": len(sw.rec_labels),
-            "n_scales": len(sw.scales),
-            "status_counts": sw.status_counts(),
-            "wall_time_s": sw.wall,
-            "tail_s": sw.tail,
-            "t1": sw.t1,
-            "grid_dt_s": sw.grid_dt,
-            "model": args.model,
-            "model_info": model_info(args),
-            "method": args.method,
-            "substeps": args.substeps if args.method == "rk4" else None,
-            "records": sw.rec_labels,
-            "record_info": sw.record_infos(),
-            "skipped_files": sw.skipped,
-            "scales": [float(x) for x in sw.scales],
-        },
-        "plot": args.plot,
-        "csv": args.out,
-        "warnings": sw.warnings + notes,
-    }
-    print(json.dumps(out))
+    info = sweep.sweep_json(args, sw)
+    print(json.dumps({"fragility": fit.to_dict(), "sweep": {k: info[k] for k in _SWEEP_KEYS},
+                      "plot": args.plot, "csv": args.out, "warnings": sw.warnings + notes}))
 
 
 def _interval(fit, ci, unit=""):

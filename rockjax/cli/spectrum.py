@@ -18,7 +18,6 @@ from ._common import (
     _load_structure,
     _scale_list,
     _scale_range,
-    _write_csv,
     add_model_arguments,
     CLIError,
     model_info,
@@ -27,9 +26,6 @@ from ._common import (
 
 #: --pulse names and the `rockjax.pulses` kinds
 PULSES = {"rectangular": "rectangular", "sine": "one_sine", "cosine": "one_cosine"}
-#: the --out CSV columns and their units
-CSV_COLUMNS = {"period": "s", "x": "-", "amplitude": "m/s2", "normalised": "-",
-               "amplitude_no_impact": "m/s2", "bracket_lo": "m/s2", "bracket_hi": "m/s2"}
 
 
 def _positive_values(option):
@@ -125,11 +121,7 @@ def run(args):
         ax.figure.savefig(args.plot, dpi=150, bbox_inches="tight")
         plt.close(ax.figure)
     if args.out:
-        _write_csv(args.out, {"period": sp.periods, "x": sp.x, "amplitude": sp.amplitude,
-                              "normalised": sp.normalised,
-                              "amplitude_no_impact": sp.amplitude_no_impact,
-                              "bracket_lo": sp.bracket[:, 0], "bracket_hi": sp.bracket[:, 1]},
-                   CSV_COLUMNS)
+        sp.to_csv(args.out)
     if args.json:
         print(json.dumps({**sp.to_dict(), "model_info": info, "plot": args.plot,
                           "csv": args.out}))

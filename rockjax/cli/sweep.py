@@ -1,38 +1,37 @@
 """`rockjax sweep`: peak responses over structures x scale factors x records (CSV, plot).
 
-Every combination runs through `rockjax.simulate_batch(summary_only=True)`, one batch per
+Every combination runs through `rockjax.sweep` (the library's one batch engine), one per
 structure; the stages are: check the inputs, load structures and records, run, write the
-CSV, then plot and report.
+CSV (`SweepResult.csv_rows`), then plot (`_plotting.plot_sweeps`) and report.
 
 Records may differ in time step and length: they run together on their common time step
 (each resampled exactly), and each run ends at its own record's end plus `--tail`. The
 units of each record come from its file, or from `FILE:UNITS` / a `--units` after it.
 
 With `--distributed` or `--coordinator/--num-processes/--process-id` the sweep runs as
-several `jax.distributed` processes (`_distributed`): each runs a contiguous block of the
-runs, process 0 gathers them and writes the same outputs as one process would.
+several `jax.distributed` processes (`_distributed` starts them; `rockjax.sweep(...,
+processes=)` splits and gathers the runs): process 0 writes the same outputs as one process
+would.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import json
 import math
 import pathlib
 import sys
 import time
-import zlib
 
-import jax
 import numpy as np
 
 import rockjax
-from rockjax import _plotting
 from rockjax._batch import DEFAULT_TAIL
-from rockjax._fragility import overturned_fraction, USABLE
+from rockjax._distributed import fingerprint
+from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
+from rockjax._sweep import USABLE, write_csv
 
 from . import _distributed
 from ._common import (
@@ -57,32 +56,6 @@ from ._common import (
     split_record_units,
 )
 
-SWEEP_COLUMNS = (
-    "structure",
-    "record",
-    "scale",
-    "peak_u_m",
-    "peak_uplift_m",
-    "n_impacts",
-    "status",
-    "t_overturn_s",
-    "t_end_s",
-    "record_file",
-    "record_units",
-    "record_units_from",
-    "record_dt_s",
-    "record_npts",
-    "record_duration_s",
-    "record_pga_g",
-    "model",
-    "impact",
-    "r",
-    "method",
-)
-#: the Summary fields kept per run, each reshaped to (n_scales, n_records)
-_FIELDS = ("peak_u", "peak_uplift", "n_impacts", "status", "t_overturn", "t_end")
-#: integer status code -> name ("completed", "overturned", ...)
-_STATUS_NAMES = {code: name for name, code in rockjax.STATUS.items()}
 #: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
 RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
 
@@ -374,8 +347,8 @@ def _sweep_records(args):
 # --------------------------------------------------------------------------------- run
 @dataclasses.dataclass
 class _Sweep:
-    """A sweep's inputs and, once `_run_batches` has filled them, its results:
-    `results[i][field]` has shape (n_scales, n_records) for structure i."""
+    """A sweep's inputs and, once `_run_batches` has filled them, its results: one
+    `rockjax.SweepResult` (records x scales) per structure."""
 
     structures: list
     struct_labels: list[str]
@@ -386,7 +359,7 @@ class _Sweep:
     t1: float | None
     skipped: dict = dataclasses.field(default_factory=dict)
     processes: int = 1
-    results: list[dict] = dataclasses.field(default_factory=list)
+    results: list = dataclasses.field(default_factory=list)
     warnings: list[str] = dataclasses.field(default_factory=list)
     wall: float = 0.0
 
@@ -420,29 +393,18 @@ class _Sweep:
         return infos
 
     def status_counts(self):
-        counts = {name: 0 for name in rockjax.STATUS}
-        for res in self.results:
-            for code in res["status"].ravel():
-                counts[_STATUS_NAMES[int(code)]] += 1
-        return counts
+        counts = [r.status_counts() for r in self.results]
+        return {name: sum(c[name] for c in counts) for name in rockjax.STATUS}
 
     def fractions_overturned(self):
-        """Per structure label, the fraction of records overturned at each scale, among
-        the runs that completed or overturned (failed runs left out, as `rockjax.sweep`);
-        None at a scale where every run failed."""
-        return {
-            lab: [None if np.isnan(x) else float(x)
-                  for x in overturned_fraction(res["status"], axis=1)]
-            for lab, res in zip(self.struct_labels, self.results)
-        }
+        """Per structure label, `SweepResult.fraction_overturned` (None for NaN)."""
+        return {lab: r.to_dict()["fraction_overturned"]
+                for lab, r in zip(self.struct_labels, self.results)}
 
     def failed_by_scale(self):
-        """Per structure label, the failed runs (max_impacts, solver_failure) at each
-        scale: left out of the fractions."""
-        return {
-            lab: [int(k) for k in (~np.isin(res["status"], USABLE)).sum(axis=1)]
-            for lab, res in zip(self.struct_labels, self.results)
-        }
+        """Per structure label, `SweepResult.failed_by_scale`."""
+        return {lab: r.failed_by_scale().tolist()
+                for lab, r in zip(self.struct_labels, self.results)}
 
 
 def _check_run_length(sweep):
@@ -457,252 +419,57 @@ def _check_run_length(sweep):
 
 
 def _fingerprint(sweep):
-    """A checksum of what was read (labels, scales, records, structures): processes that
-    read different files disagree on it."""
-    h = zlib.crc32(json.dumps([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
-                               sweep.tail, sweep.t1]).encode())
-    for rec in sweep.records:
-        h = zlib.crc32(np.ascontiguousarray(rec.accel, float).tobytes(), h)
-        h = zlib.crc32(repr(float(rec.dt)).encode(), h)
-    for s in sweep.structures:
-        for leaf in jax.tree_util.tree_leaves(s):
-            try:
-                data = np.ascontiguousarray(leaf, float).tobytes()
-            except (TypeError, ValueError):
-                data = repr(leaf).encode()
-            h = zlib.crc32(data, h)
-    return h
+    """A checksum of what was read: processes that read different files disagree on it."""
+    return fingerprint([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
+                        sweep.tail, sweep.t1],
+                       [(r.accel, float(r.dt)) for r in sweep.records] + sweep.structures)
 
 
-def _run_block(args, sweep, lo, hi, out, quiet):
-    """Runs lo..hi-1 of the sweep (run k: structure k // (n_scales n_records), then scale,
-    then record) into out[field, k - lo]: one `simulate_batch` per structure touched."""
-    n_r = len(sweep.rec_labels)
-    m = len(sweep.scales) * n_r
-    for i, s in enumerate(sweep.structures):
-        a, b = max(lo, i * m), min(hi, (i + 1) * m)
-        if a >= b:
-            continue
-        k = np.arange(a, b) - i * m  # scale-major: scale k // n_r, record k % n_r
-        res = rockjax.simulate_batch(
-            s,
-            sweep.records,
-            sweep.t1,
-            tail=sweep.tail,
-            scale=sweep.scales[k // n_r],
-            record=k % n_r,
-            r=args.r,
-            model=args.model,
-            impact=args.impact,
-            method=args.method,
-            substeps=args.substeps,
-            summary_only=True,
-            progress=False if quiet else None,
-            fidelity_warning=False,
-        )
-        for f, name in enumerate(_FIELDS):
-            out[f, a - lo : b - lo] = np.asarray(getattr(res, name))
-
-
-def _run_batches(args, sweep, cluster):
-    """This process's block of the runs, gathered from every process (one process: all of
-    them); fills sweep.results and sweep.warnings."""
-    n_s, n_r = len(sweep.scales), len(sweep.rec_labels)
-    n = len(sweep.structures) * n_s * n_r
-    lo, hi = cluster.block(n)
-    part, error = np.zeros((1 + len(_FIELDS), hi - lo)), None  # row 0: failed
+def _run_batches(args, sweep, cluster=None):
+    """`rockjax.sweep` of each structure, its runs split over the processes of `cluster`
+    (default: this one); fills sweep.results and sweep.warnings."""
+    cluster = cluster or _distributed.Cluster()
     t0 = time.perf_counter()
-    try:
-        _run_block(args, sweep, lo, hi, part[1:], quiet=args.json or cluster.index > 0)
-    except Exception as e:  # noqa: BLE001 - raised again by gather, after the others know
-        part[0], error = 1, e
-    full = cluster.gather(part, n, error)
-    sweep.wall = time.perf_counter() - t0
-    sweep.processes = cluster.count
-    m = n_s * n_r
-    for i, s in enumerate(sweep.structures):
-        res = {k: full[1 + f, i * m : (i + 1) * m].reshape(n_s, n_r) for f, k in enumerate(_FIELDS)}
-        for k in ("n_impacts", "status"):
-            res[k] = res[k].astype(np.int64)
+    quiet = args.json or cluster.index > 0
+    for s in sweep.structures:
+        with cluster.collective():
+            res = rockjax.sweep(
+                s, sweep.records, sweep.scales, model=args.model, tail=sweep.tail,
+                t1=sweep.t1, labels=sweep.rec_labels, processes=cluster, r=args.r,
+                impact=args.impact, method=args.method, substeps=args.substeps,
+                progress=False if quiet else None, fidelity_warning=False)
         sweep.results.append(res)
-        note = fidelity_note(args, s, True, res["peak_u"].ravel())
+        note = fidelity_note(args, s, True, res.peak_u.ravel())
         if note and note not in sweep.warnings:
             sweep.warnings.append(note)
             if cluster.index == 0:
                 print(f"warning: {note}", file=sys.stderr)
-
-
-def _csv_rows(args, sweep):
-    infos, model = sweep.record_infos(), model_info(args)
-    r = model["r"] if isinstance(model["r"], str) else repr(float(model["r"]))
-    for lab_s, res in zip(sweep.struct_labels, sweep.results):
-        for i, scale in enumerate(sweep.scales):
-            for j, info in enumerate(infos):
-                t_ov = float(res["t_overturn"][i, j])
-                yield [
-                    lab_s,
-                    info["label"],
-                    repr(float(scale)),
-                    repr(float(res["peak_u"][i, j])),
-                    repr(float(res["peak_uplift"][i, j])),
-                    int(res["n_impacts"][i, j]),
-                    _STATUS_NAMES[int(res["status"][i, j])],
-                    repr(t_ov) if math.isfinite(t_ov) else "",
-                    repr(float(res["t_end"][i, j])),
-                    info["file"],
-                    info["units_in_file"],
-                    info["units_from"] or "",
-                    repr(info["dt_s"]),
-                    info["n_points"],
-                    repr(info["duration_s"]),
-                    repr(info["pga_g"]),
-                    model["model"],
-                    model["impact"],
-                    r,
-                    args.method,
-                ]
+    sweep.wall = time.perf_counter() - t0
+    sweep.processes = cluster.count
 
 
 def _write_sweep_csv(args, sweep):
-    with open(args.out, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(SWEEP_COLUMNS)
-        w.writerows(_csv_rows(args, sweep))
+    write_csv(args.out, sweep.results, sweep.struct_labels)
 
 
 # ---------------------------------------------------------------------------- outputs
-def _plot_peaks(ax_u, ax_f, xs, order, results, structures, records, u_overturn):
-    """Peak |u| per structure x record (overturned runs as x at u_overturn, other failures
-    as open squares) and the fraction overturned per structure. Returns (any overturned,
-    any other failure)."""
-    styles = ["-", "--", ":", "-."]
-    many = len(structures) > 1
-    any_over = any_other = False
-    for si, (res, lab_s) in enumerate(zip(results, structures)):
-        status = np.asarray(res["status"])[order]
-        peak = 1e3 * np.asarray(res["peak_u"])[order]
-        over = status == rockjax.STATUS["overturned"]
-        other = (status != rockjax.STATUS["overturned"]) & (status != rockjax.STATUS["completed"])
-        u_ov = 1e3 * float(u_overturn[si])
-        for ri, lab_r in enumerate(records):
-            color = f"C{ri % 10}"
-            label = f"{lab_s} / {lab_r}" if many else lab_r
-            ax_u.plot(
-                xs,
-                np.where(over[:, ri], np.nan, peak[:, ri]),
-                styles[si % 4],
-                marker="o",
-                ms=3,
-                lw=1.2,
-                color=color,
-                label=label,
-            )
-            if over[:, ri].any():
-                any_over = True
-                ax_u.plot(
-                    xs[over[:, ri]],
-                    np.full(int(over[:, ri].sum()), u_ov),
-                    "x",
-                    ms=8,
-                    mew=1.6,
-                    color=color,
-                )
-            if other[:, ri].any():
-                any_other = True
-                ax_u.plot(
-                    xs[other[:, ri]], peak[other[:, ri], ri], "s", ms=7, mfc="none", color=color
-                )
-        ax_f.plot(xs, overturned_fraction(status, axis=1), styles[si % 4], marker="o", ms=4,
-                  color=f"C{si % 10}", label=lab_s)
-        if other.any():  # the failed runs, left out of the fraction
-            ax_f.plot(xs, np.mean(other, axis=1), styles[si % 4], marker="s", ms=4, mfc="none",
-                      lw=0.8, color="0.5", label=f"{lab_s}: fraction failed (left out)"
-                      if many else "fraction failed (left out)")
-    return any_over, any_other
-
-
-def _plot_overturn_levels(ax_u, u_overturn, structures):
-    """One dashed line per distinct u_overturn, labelled with its structures when several."""
-    levels = {}
-    for u_ov, lab_s in zip(u_overturn, structures):
-        key = next((k for k in levels if math.isclose(k, float(u_ov), rel_tol=1e-9)), None)
-        levels.setdefault(float(u_ov) if key is None else key, []).append(lab_s)
-    for u_ov, labs in levels.items():
-        label = "u_overturn" if len(levels) == 1 else f"u_overturn ({', '.join(labs)})"
-        ax_u.axhline(1e3 * u_ov, color="0.45", lw=0.9, ls=(0, (5, 3)), label=label)
-
-
-def _peak_legend(ax_u, any_over, any_other, n_lines):
-    """The legend of the peak panel, with the marker keys; none beyond 24 lines."""
-    handles, labels = ax_u.get_legend_handles_labels()
-    if any_over:
-        handles.append(ax_u.plot([], [], "x", color="k", ms=8, mew=1.6)[0])
-        labels.append("overturned (at u_overturn)")
-    if any_other:
-        handles.append(ax_u.plot([], [], "s", color="k", ms=7, mfc="none")[0])
-        labels.append("max_impacts / solver_failure")
-    if n_lines <= 24:
-        ax_u.legend(handles, labels, fontsize=7, ncol=2 if len(labels) > 6 else 1, loc="upper left")
-
-
-def plot_sweep(scales, results, *, u_overturn, structures, records, title=None):
-    """Peak |u| against scale (one line per structure x record; overturned runs as x at
-    u_overturn) and the fraction overturned against scale (per structure, of the runs that
-    completed or overturned; the fraction that failed, left out, as a grey line).
-
-    `results[i]` holds arrays of shape (n_scales, n_records) `peak_u` [m] and `status` for
-    structure i. Returns a matplotlib Figure (no pyplot)."""
-    x = np.asarray(scales, float)
-    order = np.argsort(x, kind="stable")
-    fig = _plotting.new_figure(figsize=(8.5, 7.5), layout="constrained")
-    ax_u, ax_f = fig.subplots(2, 1, sharex=True)
-    any_over, any_other = _plot_peaks(
-        ax_u, ax_f, x[order], order, results, structures, records, u_overturn
-    )
-    _plot_overturn_levels(ax_u, u_overturn, structures)
-    _peak_legend(ax_u, any_over, any_other, len(structures) * len(records))
-    ax_u.set_ylabel("peak |u| [mm]")
-    ax_u.set_title(title or "peak displacement against scale", fontsize=10)
-    ax_f.set_ylim(-0.03, 1.03)
-    ax_f.set_ylabel(f"fraction overturned (of {len(records)}\nrecord(s), failed runs left out)")
-    ax_f.set_xlabel("scale factor on the records")
-    if len(structures) > 1 or any_other:
-        ax_f.legend(fontsize=8)
-    for ax in (ax_u, ax_f):
-        ax.grid(alpha=0.3)
-    return fig
-
-
-def _print_json(args, sweep, counts, fractions):
+def sweep_json(args, sweep):
+    """The sweep's JSON object (`--json`; `rockjax fragility` shows part of it)."""
     n_runs, wall = sweep.n_runs, sweep.wall
-    out = {
-        "n_runs": n_runs,
-        "n_structures": len(sweep.structures),
-        "n_records": len(sweep.rec_labels),
-        "n_scales": len(sweep.scales),
-        "status_counts": counts,
-        "wall_time_s": wall,
-        "runs_per_s": n_runs / wall if wall > 0 else None,
-        "processes": sweep.processes,
-        "tail_s": sweep.tail,
-        "t1": sweep.t1,
-        "grid_dt_s": sweep.grid_dt,
-        "model": args.model,
-        "model_info": model_info(args),
-        "method": args.method,
-        "substeps": args.substeps if args.method == "rk4" else None,
-        "csv": str(args.out),
-        "plot": args.plot,
-        "structures": sweep.struct_labels,
-        "records": sweep.rec_labels,
-        "record_info": sweep.record_infos(),
-        "skipped_files": sweep.skipped,
+    return {
+        "n_runs": n_runs, "n_structures": len(sweep.structures),
+        "n_records": len(sweep.rec_labels), "n_scales": len(sweep.scales),
+        "status_counts": sweep.status_counts(), "wall_time_s": wall,
+        "runs_per_s": n_runs / wall if wall > 0 else None, "processes": sweep.processes,
+        "tail_s": sweep.tail, "t1": sweep.t1, "grid_dt_s": sweep.grid_dt, "model": args.model,
+        "model_info": model_info(args), "method": args.method,
+        "substeps": args.substeps if args.method == "rk4" else None, "csv": str(args.out),
+        "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
+        "record_info": sweep.record_infos(), "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
-        "fraction_overturned": fractions,
-        "failed_by_scale": sweep.failed_by_scale(),
-        "warnings": sweep.warnings,
+        "fraction_overturned": sweep.fractions_overturned(),
+        "failed_by_scale": sweep.failed_by_scale(), "warnings": sweep.warnings,
     }
-    print(json.dumps(out))
 
 
 def _print_inputs(args, sweep):
@@ -826,13 +593,15 @@ def _load_sweep(args, cluster):
         sweep = _read_sweep(args)
     except Exception as e:  # noqa: BLE001 - raised again by agree, after the others know
         error = e
-    cluster.agree(_fingerprint(sweep) if cluster.active and sweep is not None else None, error)
+    with cluster.collective():
+        cluster.agree(_fingerprint(sweep) if cluster.active and sweep is not None else None,
+                      error)
     return sweep
 
 
 def run(args):
-    """structures x scales x records through `simulate_batch(summary_only=True)`: CSV, plot;
-    over several jax.distributed processes when asked (process 0 writes)."""
+    """structures x scales x records through `rockjax.sweep`: CSV, plot; over several
+    jax.distributed processes when asked (process 0 writes)."""
     _check_args(args)
     cluster = _distributed.start(args)
     try:
@@ -846,18 +615,12 @@ def run(args):
     counts, fractions = sweep.status_counts(), sweep.fractions_overturned()
     if args.plot:
         end = "its end + tail" if args.t1 is None else f"min(end + tail, {args.t1:g} s)"
-        fig = plot_sweep(
-            sweep.scales,
-            sweep.results,
-            u_overturn=[float(s.u_overturn) for s in sweep.structures],
-            structures=sweep.struct_labels,
-            records=sweep.rec_labels,
-            title=f"{sweep.runs}, each record to {end}, {args.model} model, "
-            f"impact rule {args.impact}, {args.method}",
-        )
+        fig = plot_sweeps(sweep.results, sweep.struct_labels, title=f"{sweep.runs}, each "
+                          f"record to {end}, {args.model} model, impact rule {args.impact}, "
+                          f"{args.method}")
         fig.savefig(args.plot, dpi=150)
     if args.json:
-        _print_json(args, sweep, counts, fractions)
+        print(json.dumps(sweep_json(args, sweep)))
         return 0
     _print_report(args, sweep, counts, fractions)
     return 0

@@ -326,6 +326,7 @@ def test_dopri5_forward_gradient(column):
     np.testing.assert_allclose(g, fd, rtol=1e-5)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_rk4_record_scale_gradient(column, gm):
     def peak(sc):
         res = simulate(column, GroundMotion(dt=gm.dt, accel=gm.accel[:401], scale=sc), 4.0,

@@ -49,6 +49,7 @@ def test_pushover_table_plot_and_csv(tmp_path, capsys):
     assert len(lines) == 202
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
     """The demo on the real El Centro record (skips without the shared folder): the
     paper's Fig. 10 case, 243 impacts. test_demo_falls_back_to_synthetic runs it without."""
@@ -68,6 +69,7 @@ def test_demo_writes_plots(tmp_path, capsys, monkeypatch, ground_motions_dir):
     assert body.split()[-1] == "completed" and float(body.split()[-4]) < float(row.split()[-4])
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_demo_falls_back_to_synthetic(tmp_path, capsys, monkeypatch):
     from rockjax import datasets
 

@@ -204,6 +204,7 @@ def sdof_of_2dof(continuous):
     return recorded_fit(trace)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_2dof_body_recovers_k_f_from_its_dashpot_trace(twodof_fit, continuous):
     fit, wall, caught = twodof_fit
     _, truth = continuous
@@ -223,6 +224,7 @@ def test_2dof_body_recovers_k_f_from_its_dashpot_trace(twodof_fit, continuous):
     assert fit.model == "two_spring_2dof (contact continuous)"
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_sdof_fit_of_the_2dof_trace_is_flagged(sdof_of_2dof, continuous):
     fit, wall, caught = sdof_of_2dof
     lack = fit.lack_of_fit
@@ -240,6 +242,7 @@ def test_sdof_fit_of_the_2dof_trace_is_flagged(sdof_of_2dof, continuous):
     assert summary["lack_of_fit"]["fires"] is True and summary["fitted_model"] == "simplified"
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_sdof_fit_of_the_shipped_sdof_trace_is_not_flagged():
     trace = identification.read_trace(
         identification.synthetic_trace_path("synthetic_decay_noisy"))
@@ -264,6 +267,7 @@ def _write_csv(path, trace):
     return str(path)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_cli_reports_the_lack_of_fit(continuous, sdof_of_2dof, tmp_path):
     """`rockjax fit` of the 2-DOF trace with the default (simplified) model: the check in
     the text and in --json (the fit reuses the compiled code of `sdof_of_2dof`)."""

@@ -208,6 +208,7 @@ def test_gradients_match_finite_differences(grad_setup, name):
     assert np.all(err <= 1e-10 * np.abs(fd) + floor), (name, g_rev, fd, err / np.abs(fd))
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_gradient_ground_motion_scale(column):
     dt = 0.01
     t = np.arange(0.0, 3.0, dt)
@@ -255,6 +256,7 @@ def test_no_recompile_on_new_values(column):
     assert rockjax.integrators.solve._cached._cache_size() == mid >= before
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_adaptive_gradient_on_a_record_is_sane(column, synthetic_record):
     # Regression: gradients through the adaptive step-size controller once exploded
     # (1e100) on El Centro, when steps clipped to record samples passed their start-time

@@ -42,6 +42,8 @@ import numpy as np
 import identification
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 K_F = 550e3  # [N/m] k_f of the 2-DOF and rigid-body traces
 U0 = 0.1  # [m] release displacement
 DURATION = 4.0  # [s]

@@ -26,6 +26,8 @@ import numpy as np
 
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 MODELS = ("housner", "simplified", "exact", "smooth", "rigid_body", "two_spring_2dof")
 METHODS = ("diffrax", "rk4", "dopri5")
 DT = 0.01

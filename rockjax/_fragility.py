@@ -43,12 +43,15 @@ import numpy as np
 from jax.scipy.stats import norm
 
 from ._batch import DEFAULT_TAIL, simulate_batch
+from ._checks import check_one_structure, check_scales
+from ._config import ensure_x64
+from ._errors import ParameterError
 from ._excitation import GroundMotion
 from ._intensity import pga, pgd, pgv, spectral_acceleration
 from ._kinematics import theta_from_u
 from ._records import G_STANDARD, read_record, Record
 from ._status import STATUS, STATUS_NAMES
-from ._structure import FIELDS, RockingStructure
+from ._structure import RockingStructure
 from .models import get_model
 
 #: the Summary fields a SweepResult keeps, each of shape (n_records, n_scales)
@@ -116,15 +119,16 @@ class SweepResult:
         set_ = object.__setattr__
         set_(self, "records", tuple(self.records))
         set_(self, "labels", tuple(str(x) for x in self.labels))
-        set_(self, "scales", _check_scales(self.scales))
+        set_(self, "scales", check_scales(self.scales))
         shape = (len(self.records), self.scales.size)
         if len(self.labels) != shape[0]:
-            raise ValueError(f"labels: {len(self.labels)} for {shape[0]} records")
+            raise ParameterError(f"labels: {len(self.labels)} for {shape[0]} records",
+                                 param="labels")
         for name in SWEEP_FIELDS:
             a = np.asarray(getattr(self, name))
             if a.shape != shape:
-                raise ValueError(f"{name} must have shape (n_records, n_scales) = {shape}, "
-                                 f"got {a.shape}")
+                raise ParameterError(f"{name} must have shape (n_records, n_scales) = {shape}, "
+                                     f"got {a.shape}", param=name)
             set_(self, name, a.astype(np.int64) if name in ("status", "n_impacts") else a)
 
     @property
@@ -163,26 +167,6 @@ class SweepResult:
         return (~np.isin(self.status, USABLE)).sum(axis=0)
 
 
-def _check_structure(structure):
-    if not isinstance(structure, RockingStructure):
-        raise TypeError(f"structure must be a RockingStructure, got {type(structure).__name__}")
-    batched = [f for f in FIELDS if np.ndim(getattr(structure, f)) != 0]
-    if batched:
-        raise ValueError(f"structure: one structure (scalar fields), got arrays in "
-                         f"{', '.join(batched)}; sweep one structure at a time")
-
-
-def _check_scales(scales):
-    try:
-        sc = np.array(scales, dtype=float).reshape(-1) if np.ndim(scales) <= 1 else None
-    except (TypeError, ValueError):
-        raise ValueError(f"scales must be positive numbers, got {scales!r}") from None
-    if sc is None or sc.size == 0 or not np.all(np.isfinite(sc)) or np.any(sc <= 0):
-        raise ValueError(f"scales must be a non-empty 1-D list of positive finite numbers, "
-                         f"got {scales!r}")
-    return sc
-
-
 def _unique(labels):
     """Labels made unique with a #k suffix where they repeat."""
     out = []
@@ -203,13 +187,14 @@ def _as_records(records, labels):
         raise TypeError(f"records must be a sequence of Records, GroundMotions or paths, got "
                         f"{type(records).__name__}") from None
     if not items:
-        raise ValueError("records: the sequence is empty")
+        raise ParameterError("records: the sequence is empty", param="records")
     out, names = [], []
     for i, item in enumerate(items):
         if isinstance(item, (str, os.PathLike)):
             item = read_record(item)
         if isinstance(item, GroundMotion) and (np.ndim(item.accel) != 1 or np.ndim(item.scale)):
-            raise ValueError(f"records: GroundMotion {i} must hold one record (1-D accel)")
+            raise ParameterError(f"records: GroundMotion {i} must hold one record (1-D accel)",
+                                 param="records")
         if not isinstance(item, (Record, GroundMotion)):
             raise TypeError(f"records: item {i} is a {type(item).__name__}, not a Record, "
                             "GroundMotion or path")
@@ -220,7 +205,7 @@ def _as_records(records, labels):
         return tuple(out), _unique(names)
     labels = [str(x) for x in labels]
     if len(labels) != len(out):
-        raise ValueError(f"labels: {len(labels)} labels for {len(out)} records")
+        raise ParameterError(f"labels: {len(labels)} labels for {len(out)} records", param="labels")
     return tuple(out), tuple(labels)
 
 
@@ -243,9 +228,10 @@ def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, 
     **Example:** `rockjax.sweep(rockjax.mcmanus_column(), ["IELC180.AT2", "elCentro.AT2"],
     np.linspace(0.2, 3.0, 40), model="rigid_body")`.
     """
-    _check_structure(structure)
+    ensure_x64()
+    check_one_structure(structure, "sweep one structure at a time")
     recs, labs = _as_records(records, labels)
-    sc = _check_scales(scales)
+    sc = check_scales(scales)
     clash = [k for k in options if k in _SET_BY_SWEEP]
     if clash:
         raise TypeError(f"sweep sets {', '.join(clash)} itself (every record at every scale, "
@@ -279,8 +265,8 @@ def parse_im(im):
                 T = float("nan")
             if np.isfinite(T) and T > 0:
                 return "Sa", T, IM_UNITS["Sa"]
-    raise ValueError(f"im must be 'PGA', 'PGV', 'PGD', 'Sa(T)' with a period T > 0 in "
-                     f"seconds such as 'Sa(1.0)', or 'scale', got {im!r}")
+    raise ParameterError(f"im must be 'PGA', 'PGV', 'PGD', 'Sa(T)' with a period T > 0 in "
+                         f"seconds such as 'Sa(1.0)', or 'scale', got {im!r}", param="im")
 
 
 def im_label(name, period):
@@ -311,19 +297,19 @@ def parse_limit(limit):
         if text == "overturned":
             return "overturned", None
         if "=" not in text:
-            raise ValueError(f"{msg}, got {limit!r}")
+            raise ParameterError(f"{msg}, got {limit!r}", param="limit")
         limit = tuple(p.strip() for p in text.split("=", 1))
     if not isinstance(limit, (tuple, list)) or len(limit) != 2 or limit[0] not in (
             "uplift", "rotation"):
-        raise ValueError(f"{msg}, got {limit!r}")
+        raise ParameterError(f"{msg}, got {limit!r}", param="limit")
     try:
         thr = float(limit[1])
     except (TypeError, ValueError):
-        raise ValueError(f"limit: the {limit[0]} threshold must be a number, got "
-                         f"{limit[1]!r}") from None
+        raise ParameterError(f"limit: the {limit[0]} threshold must be a number, got "
+                             f"{limit[1]!r}", param="limit") from None
     if not (np.isfinite(thr) and thr > 0):
-        raise ValueError(f"limit: the {limit[0]} threshold must be positive and finite, "
-                         f"got {limit[1]!r}")
+        raise ParameterError(f"limit: the {limit[0]} threshold must be positive and finite, "
+                             f"got {limit[1]!r}", param="limit")
     return limit[0], thr
 
 
@@ -565,7 +551,8 @@ class FragilityResult:
         of the shape of `im`, a float for a scalar."""
         x = np.asarray(im, float)
         if np.any(~np.isfinite(x) | (x < 0)):
-            raise ValueError(f"im must be finite numbers >= 0 [{self.im_unit}], got {im!r}")
+            raise ParameterError(f"im must be finite numbers >= 0 [{self.im_unit}], got {im!r}",
+                                 param="im")
         with np.errstate(divide="ignore"):
             p = _probability(np.log(self.median), self.beta, np.log(x).reshape(-1))
         p = p.reshape(x.shape)
@@ -607,15 +594,18 @@ def _check_fit_args(sweep_result, n_bootstrap, confidence, seed, grid):
                         f"got {type(sweep_result).__name__}")
     if isinstance(n_bootstrap, bool) or not isinstance(n_bootstrap, (int, np.integer)) or (
             n_bootstrap < 0):
-        raise ValueError(f"n_bootstrap must be an integer >= 0, got {n_bootstrap!r}")
+        raise ParameterError(f"n_bootstrap must be an integer >= 0, got {n_bootstrap!r}",
+                             param="n_bootstrap")
     if not (isinstance(confidence, (int, float, np.floating)) and 0 < confidence < 1):
-        raise ValueError(f"confidence must lie in (0, 1), e.g. 0.9, got {confidence!r}")
+        raise ParameterError(f"confidence must lie in (0, 1), e.g. 0.9, got {confidence!r}",
+                             param="confidence")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
-        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+        raise ParameterError(f"seed must be an integer or None, got {seed!r}", param="seed")
     if grid is not None:
         g = np.asarray(grid, float)
         if g.ndim != 1 or g.size < 2 or not np.all(np.isfinite(g)) or np.any(g <= 0):
-            raise ValueError(f"grid must be a 1-D array of >= 2 positive IM values, got {grid!r}")
+            raise ParameterError(
+                f"grid must be a 1-D array of >= 2 positive IM values, got {grid!r}", param="grid")
 
 
 def _degenerate(x, y, name, unit, limit):
@@ -634,11 +624,11 @@ def _check_data(x, y, name, unit, limit, status):
     """A ValueError for data without a fit: no run used, no exceedance or no survivor."""
     if x.size == 0:
         failed = {n: int(np.sum(status == STATUS[n])) for n in FAILED}
-        raise ValueError(f"sweep_result: no run completed or overturned ({failed}); nothing "
-                         "to fit")
+        raise ParameterError(f"sweep_result: no run completed or overturned ({failed}); nothing "
+                             "to fit", param="sweep_result")
     msg = _degenerate(x, y, name, unit, limit)
     if msg:
-        raise ValueError(msg)
+        raise ParameterError(msg, param="scales")
 
 
 def _main_fit(ln_theta, outcome, name, unit, limit):
@@ -696,6 +686,7 @@ def fragility(sweep_result, im="PGA", limit="overturned", *, n_bootstrap=1000,
     **Returns:** a `FragilityResult`. Errors: no run completed or overturned; no run (or
     every run) reached the limit. Separated data give β = 0 with a RuntimeWarning.
     """
+    ensure_x64()
     _check_fit_args(sweep_result, n_bootstrap, confidence, seed, grid)
     name, period, unit = parse_im(im)
     kind, threshold = parse_limit(limit)
@@ -703,7 +694,7 @@ def fragility(sweep_result, im="PGA", limit="overturned", *, n_bootstrap=1000,
     base = np.array([record_im(r, name, period) for r in res.records])
     bad = [lab for lab, v in zip(res.labels, base) if not (np.isfinite(v) and v > 0)]
     if bad:
-        raise ValueError(f"im: {label} is zero for record(s) {', '.join(bad)}")
+        raise ParameterError(f"im: {label} is zero for record(s) {', '.join(bad)}", param="im")
     x = base[:, None] * res.scales[None, :]
     y = exceedances(res, kind, threshold)
     used = np.isin(res.status, USABLE)

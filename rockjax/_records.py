@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._errors import ParameterError, Placeholder
+
 __all__ = ["G_STANDARD", "Record", "common_time_step", "read_record"]
 
 G_STANDARD = 9.80665
@@ -239,26 +241,26 @@ def _resolve_units(
     that states its units wins, and units given as well must agree with them."""
     if stated is not None and stated[0] == "both":
         if given is None:
-            raise ValueError(
-                f"{source}: the header states conflicting units ['g', 'm/s2'] "
-                f"({stated[1]}); pass units='g' or units='m/s2'"
+            raise ParameterError(
+                f"{source}: the header states conflicting units ['g', 'm/s2'] ({stated[1]})",
+                param="units", choices=("g", "m/s2"),
             )
         return given, "given"
     if stated is not None:
         units, text = stated
         if given is not None and given != units:
-            raise ValueError(
+            raise ParameterError(
                 f"{source}: the file states units {units} ({text} in its header) but "
-                f"units={given!r} was given; omit units= or pass units={units!r}"
+                f"{given} was given", param="units", omit=True, choices=(units,),
             )
         return units, "file header"
     if given is not None:
         return given, "given"
     if default is not None:
         return default, "AT2 default"
-    raise ValueError(
-        f"{source}: the units of the acceleration are not stated in the file; "
-        "pass units='g' or units='m/s2'"
+    raise ParameterError(
+        f"{source}: the units of the acceleration are not stated in the file",
+        param="units", choices=("g", "m/s2"),
     )
 
 
@@ -295,9 +297,9 @@ def _non_numeric(source: str, lineno: int, line: str) -> ValueError:
 
 def _check_dt_arg(dt_arg: float | None, dt_file: float, source: str) -> None:
     if dt_arg is not None and abs(dt_arg - dt_file) > 1e-6 * dt_file + 1e-12:
-        raise ValueError(
-            f"{source}: dt={dt_arg!r} was passed but the file has a time step of "
-            f"{dt_file!r} s; omit dt= for this file"
+        raise ParameterError(
+            f"{source}: a time step of {dt_arg!r} s was given but the file has a time step "
+            f"of {dt_file!r} s", param="dt", omit=True,
         )
 
 
@@ -317,9 +319,10 @@ def _read_at2(
         )
     npts_dt = _match_npts_dt(lines[3])
     if npts_dt is None:
-        raise ValueError(
+        raise ParameterError(
             f"{source}, line 4: expected the PEER AT2 header 'NPTS= ..., DT= ... SEC', "
-            f"got {lines[3].strip()!r} (pass format= if this is not an AT2 file)"
+            f"got {lines[3].strip()!r} (a file named .AT2 is read as PEER AT2)",
+            param="format", choices=_FORMATS[1:],
         )
     npts, dt = npts_dt
     if not (math.isfinite(dt) and dt > 0.0):
@@ -416,9 +419,10 @@ def _detect_format(lines: list[str], path: Path, source: str) -> str:
             return "two_column"
         if len(vals) == 1:
             return "one_column"
-        raise ValueError(
+        raise ParameterError(
             f"{source}, line {lineno}: cannot detect the file format from {len(vals)} values "
-            f"per line; pass format='at2', 'two_column' or 'one_column'"
+            "per line (a record file is PEER AT2, two columns (t, a) or one column (a))",
+            param="format", choices=_FORMATS,
         )
     raise ValueError(f"{source}: no numeric data found (empty file or header only)")
 
@@ -488,9 +492,10 @@ def read_record(
         try:
             dt = float(dt)
         except (TypeError, ValueError):
-            raise ValueError(f"dt must be a number of seconds, got dt={dt!r}") from None
+            raise ParameterError(f"dt must be a number of seconds, got {dt!r}",
+                                 param="dt") from None
         if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"dt must be finite and > 0 [s], got dt={dt!r}")
+            raise ParameterError(f"dt must be finite and > 0 [s], got {dt!r}", param="dt")
     if format is not None:
         fmt = str(format).strip().lower().replace("-", "_")
         if fmt not in _FORMATS:
@@ -515,9 +520,8 @@ def read_record(
     else:
         ncols = 2 if format == "two_column" else 1
         if ncols == 1 and dt is None:
-            raise ValueError(
-                f"{source}: a one-column file has no time information; pass dt=<time step in s>"
-            )
+            raise ParameterError(f"{source}: a one-column file has no time information",
+                                 param="dt", choices=(Placeholder("time step in s"),))
         data, linenos, header = _read_columns(lines, source, ncols)
         accel = data[:, -1]
         if accel.size < 2:

@@ -26,6 +26,13 @@ from ._common import (
 COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
 
 
+def flags(command):
+    """The library parameter -> option map of a command (its module's `FLAGS`, else the
+    options most commands share)."""
+    module = next((c for c in COMMANDS if c.__name__.rsplit(".", 1)[-1] == command), None)
+    return getattr(module, "FLAGS", COMMON_FLAGS)
+
+
 def _version():
     """rockjax's version, with the versions of the JAX stack it runs on."""
     from importlib.metadata import PackageNotFoundError, version
@@ -87,8 +94,8 @@ def main(argv=None, *, compile_cache=None):
     try:
         return args.func(args)
     except ParameterError as e:  # the library names the parameter; the command its option
-        flags = getattr(sys.modules[args.func.__module__], "FLAGS", COMMON_FLAGS)
-        print(f"rockjax {args.command}: error: {parameter_message(e, flags)}", file=sys.stderr)
+        print(f"rockjax {args.command}: error: {parameter_message(e, flags(args.command))}",
+              file=sys.stderr)
         return EXIT_USAGE
     except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
         print(f"rockjax {args.command}: error: {_first_line(e)}", file=sys.stderr)

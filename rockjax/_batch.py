@@ -32,6 +32,7 @@ from ._checks import (
     stepper_grid_step,
 )
 from ._config import ensure_x64
+from ._devices import advise_configure
 from ._errors import ParameterError
 from ._excitation import FreeVibration, GroundMotion, PaddedGroundMotion
 from ._fidelity import warn_sdof_lift_off
@@ -469,9 +470,10 @@ def simulate_batch(
       padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
       or as many full responses as fit in about 256 MB.
     - `devices`: how many local devices to split each chunk over (default: all of
-      `jax.local_devices()`; on a CPU `import rockjax` makes one device per core, unless
-      `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or JAX
-      ran before it: docs/batches.md).
+      `jax.local_devices()`; on a CPU `rockjax.configure()` makes one device per core,
+      unless `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or
+      JAX ran before it: docs/batches.md; without it, a batch on one CPU device of a
+      multi-core machine warns once).
     - `fidelity_warning`: as `rockjax.simulate` (one warning for the batch, counting the
       runs that lift off by more than 3 u_crit under the paper's SDOF models).
     - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and
@@ -514,6 +516,8 @@ def simulate_batch(
     lengths = None if free else (suite.lengths if suite is not None else
                                  np.full(table.shape[0], table.shape[1]))
     dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last, dt)
+    if devices is None:
+        advise_configure()
     n_dev = _devices(devices)
     n_out = len(grid) if ts is None else len(ts)
     chunk = _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev)

@@ -89,4 +89,18 @@ def ensure_x64() -> None:
             "rockjax turned on JAX's float64 mode (jax_enable_x64), which its results "
             "default to; call rockjax.configure() before any computation to do it "
             "explicitly (and silence this warning), or rockjax.configure(x64=False) to "
-            "keep float32", ConfigurationWarning, stacklevel=3)
+            "keep float32", ConfigurationWarning, stacklevel=_user_level())
+
+
+def _user_level() -> int:
+    """The `stacklevel` of the first frame outside rockjax, equinox and jax (the user's
+    call), so that the warning names the user's line."""
+    import sys
+
+    import equinox
+
+    inside = tuple(os.path.dirname(m.__file__) for m in (sys.modules[__package__], equinox, jax))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_code.co_filename.startswith(inside):
+        frame, level = frame.f_back, level + 1
+    return level

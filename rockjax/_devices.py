@@ -92,3 +92,32 @@ def choose_cpu_devices(cpu_devices="all") -> dict:
     DEVICE_CHOICE.clear()
     DEVICE_CHOICE.update(choice)
     return choice
+
+
+#: whether `advise_configure` has looked (it warns at most once per process)
+_ADVISED = {"done": False}
+
+
+def advise_configure() -> None:
+    """Warn once (`rockjax.ConfigurationWarning`) when a batch is about to run on a single
+    CPU device although this process may use more cores and nobody chose a count:
+    `rockjax.configure()` was not called and none of ``XLA_FLAGS``,
+    ``JAX_NUM_CPU_DEVICES`` and ``ROCKJAX_CPU_DEVICES`` is set. Cheap after the first call."""
+    if _ADVISED["done"]:
+        return
+    _ADVISED["done"] = True
+    if DEVICE_CHOICE["action"] != "not run" or _user_choice() is not None or (
+            os.environ.get("ROCKJAX_CPU_DEVICES", "").strip()):
+        return
+    devices = jax.local_devices()
+    cores = usable_cores()
+    if len(devices) == 1 and devices[0].platform == "cpu" and cores > 1:
+        import warnings
+
+        from ._errors import ConfigurationWarning
+
+        warnings.warn(
+            f"this batch runs on 1 JAX CPU device although {cores} cores are usable; call "
+            "rockjax.configure() before any JAX computation for one device per core (or "
+            "rockjax.configure(cpu_devices=None) to keep one device and silence this)",
+            ConfigurationWarning, stacklevel=3)

@@ -78,3 +78,33 @@ def test_configure_reports_what_it_did():
     assert e.value.param == "cpu_devices"
     with pytest.raises(ValueError, match="x64 must be True or False"):
         rockjax.configure(x64="yes")
+
+
+BATCH = r"""
+import json, sys, warnings
+import numpy as np
+import rockjax
+if sys.argv[1] == "keep-one":
+    rockjax.configure(cpu_devices=None)
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    s = rockjax.mcmanus_column()
+    for _ in range(2):
+        rockjax.simulate_batch(s, rockjax.FreeVibration(0.0), 0.2, u0=np.array([0.05, 0.1]),
+                               method="rk4", summary_only=True)
+print(json.dumps([str(w.message) for w in caught if "JAX CPU device" in str(w.message)]))
+"""
+
+
+@pytest.mark.skipif(rockjax._devices.usable_cores() < 2, reason="one usable core")
+def test_a_batch_on_one_device_of_many_cores_advises_configure_once():
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "ROCKJAX_CPU_DEVICES")}
+    said = {}
+    for mode in ("plain", "keep-one"):
+        out = subprocess.run([sys.executable, "-c", BATCH, mode], env=env, capture_output=True,
+                             text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        said[mode] = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len(said["plain"]) == 1 and "rockjax.configure()" in said["plain"][0]
+    assert said["keep-one"] == []  # the count was chosen: nothing to advise

@@ -610,7 +610,7 @@ API = [
          "n_scan must be an integer in [8, 4096], got 2"),
     case("O7", "batch", lambda d: rockjax.overturning_spectrum(
         S.replace(k_f=np.full(2, 5e5)), "sine", [1.0]),
-        "structure must hold one structure (scalar fields)"),
+        "structure: one structure (scalar fields), got arrays in k_f"),
 ]
 
 

@@ -128,23 +128,28 @@ class Record:
         try:
             dt = float(self.dt)
         except (TypeError, ValueError):
-            raise ValueError(f"Record: dt must be a number [s], got {self.dt!r}") from None
+            raise ParameterError(f"Record: dt must be a number [s], got {self.dt!r}",
+                                 param="dt") from None
         if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"Record: dt must be finite and > 0 [s], got {self.dt!r}")
+            raise ParameterError(f"Record: dt must be finite and > 0 [s], got {self.dt!r}",
+                                 param="dt")
         try:
             accel = np.array(self.accel, dtype=np.float64, copy=True)
         except (TypeError, ValueError) as e:
-            raise ValueError(f"Record: accel must be an array of numbers ({e})") from None
+            raise ParameterError(f"Record: accel must be an array of numbers ({e})",
+                                 param="accel") from None
         if accel.ndim != 1:
-            raise ValueError(f"Record: accel must be 1-D, got shape {accel.shape}")
+            raise ParameterError(f"Record: accel must be 1-D, got shape {accel.shape}",
+                                 param="accel")
         if accel.size < 2:
-            raise ValueError(f"Record: accel needs at least 2 samples, got {accel.size}")
+            raise ParameterError(f"Record: accel needs at least 2 samples, got {accel.size}",
+                                 param="accel")
         if not np.all(np.isfinite(accel)):
-            raise ValueError("Record: accel contains NaN or inf values")
+            raise ParameterError("Record: accel contains NaN or inf values", param="accel")
         if self.units_in_file not in ("g", "m/s2"):
-            raise ValueError(
-                f"Record: units_in_file must be 'g' or 'm/s2', got {self.units_in_file!r}"
-            )
+            raise ParameterError(
+                f"Record: units_in_file must be 'g' or 'm/s2', got {self.units_in_file!r}",
+                param="units_in_file")
         accel.setflags(write=False)
         object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "accel", accel)
@@ -180,9 +185,9 @@ def _normalize_units(units: str) -> str:
     try:
         return _UNIT_ALIASES[key]
     except KeyError:
-        raise ValueError(
-            f"unknown units={units!r}; expected 'g' or 'm/s2' (also 'm/s^2', 'mps2')"
-        ) from None
+        raise ParameterError(
+            f"unknown units={units!r}; expected 'g' or 'm/s2' (also 'm/s^2', 'mps2')",
+            param="units") from None
 
 
 def _classify_unit_token(token: str) -> str | None:
@@ -499,9 +504,9 @@ def read_record(
     if format is not None:
         fmt = str(format).strip().lower().replace("-", "_")
         if fmt not in _FORMATS:
-            raise ValueError(
-                f"unknown format={format!r}; expected one of {', '.join(map(repr, _FORMATS))}"
-            )
+            raise ParameterError(
+                f"unknown format={format!r}; expected one of {', '.join(map(repr, _FORMATS))}",
+                param="format")
         format = fmt
     if not p.exists():
         raise FileNotFoundError(f"ground-motion record not found: {source}")

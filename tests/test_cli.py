@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 import numpy as np
 import pytest
@@ -263,8 +264,10 @@ def test_one_converter_factory(capsys):
     from rockjax.cli._common import converter
     conv = converter("--n", int, lambda n: n > 2, "be above 2")
     assert conv("3") == 3
+    with pytest.raises(argparse.ArgumentTypeError, match="--x must be finite, got 'nan'"):
+        converter("--x", float, math.isfinite, "be finite")("nan")
     for text, says in (("x", "--n must be an integer, got 'x'"),
-                       ("1", "--n must be above 2, got '1'")):
+                       (" 1", "--n must be above 2, got 1$")):
         with pytest.raises(argparse.ArgumentTypeError, match=says):
             conv(text)
 

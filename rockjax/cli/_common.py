@@ -70,7 +70,7 @@ def _first_line(e):
 # ------------------------------------------------------------------ argument converters
 def converter(option, kind=float, test=None, must=None):
     """The one factory of argparse types: the text as `kind` (float or int), which must pass
-    `test` (else "OPTION must MUST, got TEXT")."""
+    `test` (else "OPTION must MUST, got X": the integer read, or the text of a number)."""
     noun = "an integer" if kind is int else "a number"
 
     def conv(text):
@@ -79,7 +79,8 @@ def converter(option, kind=float, test=None, must=None):
         except ValueError:
             raise argparse.ArgumentTypeError(f"{option} must be {noun}, got {text!r}") from None
         if test is not None and not test(x):
-            raise argparse.ArgumentTypeError(f"{option} must {must}, got {text!r}")
+            got = x if kind is int else repr(text)
+            raise argparse.ArgumentTypeError(f"{option} must {must}, got {got}")
         return x
 
     return conv

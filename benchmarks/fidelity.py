@@ -52,6 +52,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import rockjax  # noqa: E402
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 HERE = pathlib.Path(__file__).resolve().parent
 SHARED = HERE.parent.parent / "shared" / "data" / "ground_motions"
 #: units of the shared records whose files do not state them (from PROVENANCE.md)

@@ -43,6 +43,8 @@ import jax
 import identification
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 from helpers.fit_models import make_trace, TRACES  # noqa: E402
 

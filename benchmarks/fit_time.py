@@ -42,6 +42,8 @@ import numpy as np
 import identification
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 NAME = "synthetic_decay_noisy"
 PARAMS = ("k_f", "r", "u0")  # u0 as a nuisance: the first noisy sample would bias k_f and r
 

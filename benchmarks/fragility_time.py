@@ -23,6 +23,8 @@ import numpy as np
 
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 RECORDS = (
     ("IELC180.AT2", None),
     ("elCentro.AT2", None),

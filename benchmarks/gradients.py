@@ -28,6 +28,8 @@ import numpy as np
 import identification
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 HERE = pathlib.Path(__file__).resolve().parent
 P0 = jnp.asarray([8.0e5, 0.85, 0.1])  # k_f [N/m], r, u0 [m]
 

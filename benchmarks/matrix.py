@@ -18,6 +18,8 @@ import numpy as np
 
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 from helpers.matrix import (  # noqa: E402
     agreement,

@@ -45,6 +45,8 @@ from single_run import _load_reference  # noqa: E402  (benchmarks/ is the script
 import rockjax
 from rockjax._status import STATUS_NAMES
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
 HERE = pathlib.Path(__file__).resolve().parent
 T1 = 40.0

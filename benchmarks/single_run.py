@@ -28,6 +28,8 @@ import numpy as np
 
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
 

@@ -19,6 +19,8 @@ import numpy as np
 
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 
 def slender_block(k_f=1e10, b=0.15, h=1.0, m=1000.0):
     """A uniform block 2b x 2h [m], m [kg], as two halves at its centroid."""

@@ -23,12 +23,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._checks import (
+    check_end_time,
     check_float64,
     check_scene,
     check_settings,
+    check_ts,
     default_substeps,
     stepper_grid_step,
 )
+from ._config import ensure_x64
+from ._devices import advise_configure
+from ._errors import ParameterError
 from ._excitation import FreeVibration, GroundMotion, PaddedGroundMotion
 from ._fidelity import warn_sdof_lift_off
 from ._records import common_time_step, on_grid, Record
@@ -87,33 +92,35 @@ def _length(name, x):
         return None
     if len(shape) == 1:
         return shape[0]
-    raise ValueError(
-        f"{name} must be a scalar or a 1-D array (one value per run), got shape {shape}"
+    raise ParameterError(
+        f"{name} must be a scalar or a 1-D array (one value per run), got shape {shape}",
+        param=name
     )
 
 
 def _records(excitation, record):
     """The record table (n_records, n_samples) [m/s²] and the per-member record index."""
     if np.ndim(excitation.dt) != 0:
-        raise ValueError(
+        raise ParameterError(
             "the records of a batch must share one time step: dt must be a "
             "scalar (records of different time steps go in as a sequence, "
-            "excitation=[record, ...])"
+            "excitation=[record, ...])", param="excitation"
         )
     acc = np.asarray(excitation.accel)
     if acc.ndim == 1:
         acc = acc[None]
     elif acc.ndim != 2:
-        raise ValueError(
-            f"accel must be 1-D (one record) or 2-D (records x samples), got shape {acc.shape}"
+        raise ParameterError(
+            f"accel must be 1-D (one record) or 2-D (records x samples), got shape {acc.shape}",
+            param="excitation"
         )
     if record is None:
         record = 0 if acc.shape[0] == 1 else np.arange(acc.shape[0])
     rec = np.asarray(record)
     if not np.issubdtype(rec.dtype, np.integer) or np.any(rec < 0) or np.any(rec >= acc.shape[0]):
-        raise ValueError(
+        raise ParameterError(
             f"record must hold integer indices into the {acc.shape[0]} "
-            f"record(s) of excitation.accel, got {rec}"
+            f"record(s) of excitation.accel, got {rec}", param="record"
         )
     return acc, rec
 
@@ -137,19 +144,19 @@ def _suite_item(i, item):
     if isinstance(item, Record):
         return item.dt, np.asarray(item.accel), item.source or f"record {i}"
     if not isinstance(item, GroundMotion) or isinstance(item, PaddedGroundMotion):
-        raise ValueError(
+        raise ParameterError(
             f"excitation: a sequence must hold Records or GroundMotions, item {i} is a "
-            f"{type(item).__name__}"
+            f"{type(item).__name__}", param="excitation"
         )
     if np.ndim(item.dt) != 0 or np.ndim(item.accel) != 1 or np.ndim(item.scale) != 0:
-        raise ValueError(
+        raise ParameterError(
             f"excitation: GroundMotion {i} of the sequence must hold one record (scalar dt "
-            "and scale, 1-D accel)"
+            "and scale, 1-D accel)", param="excitation"
         )
     if np.any(np.asarray(item.u0) != 0) or np.any(np.asarray(item.v0) != 0):
-        raise ValueError(
+        raise ParameterError(
             f"excitation: GroundMotion {i} of the sequence has u0 or v0; pass u0=, v0= to "
-            "simulate_batch instead"
+            "simulate_batch instead", param="excitation"
         )
     return float(item.dt), np.asarray(item.accel) * float(item.scale), f"record {i}"
 
@@ -158,7 +165,7 @@ def _make_suite(items, record_steps="common"):
     """The records of a sequence, resampled exactly onto their common time step (or each
     kept on its own step: record_steps="own")."""
     if len(items) == 0:
-        raise ValueError("excitation: the sequence of records is empty")
+        raise ParameterError("excitation: the sequence of records is empty", param="excitation")
     dts, accels, names = zip(*(_suite_item(i, x) for i, x in enumerate(items)))
     own = record_steps == "own"
     step = max(dts) if own else common_time_step(dts, names=names)
@@ -178,9 +185,10 @@ def _suite_ends(suite, record, t1, tail):
         tail = DEFAULT_TAIL
     tl = np.asarray(tail, dtype=float) if np.ndim(tail) == 0 else None
     if tl is None or not np.isfinite(tl) or tl < 0:
-        raise ValueError(f"tail must be a finite number of seconds >= 0, got {tail!r}")
+        raise ParameterError(f"tail must be a finite number of seconds >= 0, got {tail!r}",
+                             param="tail")
     ends = suite.durations[np.asarray(record)] + float(tl)
-    return ends if t1 is None else np.minimum(ends, _check_t1(t1))
+    return ends if t1 is None else np.minimum(ends, check_end_time(t1))
 
 
 def _suite_members(suite, scale, record, t1, tail):
@@ -190,12 +198,13 @@ def _suite_members(suite, scale, record, t1, tail):
         record = 0 if n == 1 else np.arange(n)
     rec = np.asarray(record)
     if not np.issubdtype(rec.dtype, np.integer) or np.any(rec < 0) or np.any(rec >= n):
-        raise ValueError(
+        raise ParameterError(
             f"record must hold integer indices into the {n} record(s) of the sequence, "
-            f"got {rec}"
+            f"got {rec}", param="record"
         )
     if rec.ndim > 1:
-        raise ValueError(f"record must be a scalar or a 1-D array, got shape {rec.shape}")
+        raise ParameterError(f"record must be a scalar or a 1-D array, got shape {rec.shape}",
+                             param="record")
     t_end = _suite_ends(suite, rec, t1, tail)
     if t_end.ndim == 1 and np.all(t_end == t_end[0]):
         t_end = t_end[:1]  # one end for all: the stepper needs no per-member ends
@@ -231,12 +240,14 @@ def _resolve(structure, excitation, scale, r, u0, v0, record, t1, tail, record_s
     if suite is None:
         check_scene(structure, excitation)
         if tail is not None:
-            raise ValueError(
+            raise ParameterError(
                 "tail applies to a sequence of records (excitation=[record, ...]); a "
-                "single excitation runs to t1"
+                "single excitation runs to t1", param="tail"
             )
     elif not isinstance(structure, RockingStructure):
-        raise ValueError(f"structure must be a RockingStructure, got {type(structure).__name__}")
+        raise ParameterError(
+            f"structure must be a RockingStructure, got {type(structure).__name__}",
+            param="structure")
     free = isinstance(excitation, FreeVibration)
     members = {
         "u0": excitation.u0 if u0 is None and suite is None else (0.0 if u0 is None else u0),
@@ -247,22 +258,23 @@ def _resolve(structure, excitation, scale, r, u0, v0, record, t1, tail, record_s
         table = suite.table
     elif free:
         if scale is not None or record is not None:
-            raise ValueError("scale and record apply to a GroundMotion, not a FreeVibration")
-        members.update(scale=1.0, record=0, t_end=_check_t1(t1))
+            raise ParameterError("scale and record apply to a GroundMotion, not a FreeVibration",
+                                 param="scale")
+        members.update(scale=1.0, record=0, t_end=check_end_time(t1))
         table = None
     else:
         members["scale"] = excitation.scale if scale is None else scale
         table, members["record"] = _records(excitation, record)
-        members["t_end"] = _check_t1(t1)
+        members["t_end"] = check_end_time(t1)
     members["r"] = structure.restitution if r is None else r
     N = _batch_length(structure, members)
     for name, x in members.items():
         a = np.asarray(x)
         if name != "record" and not np.all(np.isfinite(a)):
-            raise ValueError(f"{name} must be finite, got {a}")
+            raise ParameterError(f"{name} must be finite, got {a}", param=name)
     rr = np.asarray(members["r"])
     if np.any(rr < 0) or np.any(rr > 1):
-        raise ValueError(f"r must lie in [0, 1], got {rr}")
+        raise ParameterError(f"r must lie in [0, 1], got {rr}", param="r")
     return N, members, table, free, suite
 
 
@@ -469,9 +481,10 @@ def simulate_batch(
       padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
       or as many full responses as fit in about 256 MB.
     - `devices`: how many local devices to split each chunk over (default: all of
-      `jax.local_devices()`; on a CPU `import rockjax` makes one device per core, unless
-      `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or JAX
-      ran before it: docs/batches.md).
+      `jax.local_devices()`; on a CPU `rockjax.configure()` makes one device per core,
+      unless `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or
+      JAX ran before it: docs/batches.md; without it, a batch on one CPU device of a
+      multi-core machine warns once).
     - `fidelity_warning`: as `rockjax.simulate` (one warning for the batch, counting the
       runs that lift off by more than 3 u_crit under the paper's SDOF models).
     - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and
@@ -502,8 +515,9 @@ def simulate_batch(
     out.t_end                                          # [45.0, 36.16, 45.0, 36.16]
     ```
     """
+    ensure_x64()
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise ParameterError(f"method must be one of {METHODS}, got {method!r}", param="method")
     check_settings(method=method, rtol=rtol, atol=atol, max_impacts=max_impacts, dt=dt,
                    substeps=substeps)
     model = get_model(model, impact)
@@ -517,7 +531,7 @@ def simulate_batch(
     t_last = float(np.max(members["t_end"]))
     dtype = jnp.result_type(structure.B)
     check_float64(method, dtype)
-    _check_ts(ts, summary_only, t_last)
+    check_ts(ts, t_last, summary_only)
     # each record's samples: the ground acceleration is zero after the last one
     lengths = None if free else (suite.lengths if suite is not None else
                                  np.full(table.shape[0], table.shape[1]))
@@ -525,6 +539,8 @@ def simulate_batch(
         suite, np.arange(len(suite.steps)), t1, tail)
     dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last, dt,
                                 ends)
+    if devices is None:
+        advise_configure()
     n_dev = _devices(devices)
     n_out = len(grid) if ts is None else len(ts)
     chunk = _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev)
@@ -544,41 +560,15 @@ def simulate_batch(
     return out
 
 
-def _check_t1(t1):
-    if t1 is None:
-        raise ValueError(
-            "t1 must be given: the end time [s] of a single excitation (only a sequence of "
-            "records has a default end, each record's end plus tail)"
-        )
-    t1f = np.asarray(t1, dtype=float)
-    if t1f.ndim != 0 or not np.isfinite(t1f) or not t1f > 0:
-        raise ValueError(f"t1 must be a positive, finite scalar, got {t1f}")
-    return float(t1f)
-
-
-def _check_ts(ts, summary_only, t1f):
-    if ts is None:
-        return
-    if summary_only:
-        raise ValueError("ts applies to full responses, not with summary_only=True")
-    tsn = np.asarray(ts, dtype=float)
-    if tsn.ndim != 1 or tsn.size < 1 or not np.all(np.isfinite(tsn)):
-        raise ValueError("ts must be a 1-D array of finite output times")
-    if tsn.size > 1 and not np.all(np.diff(tsn) > 0):
-        raise ValueError("ts must be strictly increasing")
-    if tsn[0] < 0 or tsn[-1] > t1f * (1 + 1e-12):
-        raise ValueError(f"ts must lie within [0, t1] = [0, {t1f}]")
-
-
 def _grid(excitation, table, free, t1f, dt, ends=None):
     """(step [s], the grid [s], the record table padded past t1): the record's samples,
     the common step of a suite, or dt for a free vibration. `ends` [s]: with records on
     their own steps, the end of a run of each record (the longest run sets the steps)."""
     if isinstance(excitation, _Suite):
         if dt is not None:
-            raise ValueError(
+            raise ParameterError(
                 "dt applies to a free vibration; a sequence of records is integrated on "
-                "their common time step (use substeps to refine)"
+                "their common time step (use substeps to refine)", param="dt"
             )
         dt_rec, n_steps = excitation.dt, int(math.ceil(t1f / excitation.dt - 1e-9))
         if ends is not None:
@@ -596,8 +586,9 @@ def _grid(excitation, table, free, t1f, dt, ends=None):
 def _devices(devices):
     n_dev = len(jax.local_devices()) if devices is None else int(devices)
     if not 1 <= n_dev <= len(jax.local_devices()):
-        raise ValueError(
-            f"devices must be between 1 and {len(jax.local_devices())}, got {devices!r}"
+        raise ParameterError(
+            f"devices must be between 1 and {len(jax.local_devices())}, got {devices!r}",
+            param="devices"
         )
     return n_dev
 
@@ -614,7 +605,8 @@ def _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev):
         else:
             chunk_size = max(1, min(8192, int(2**28 // (32 * (n_out + max_impacts)))))
     if not (isinstance(chunk_size, int) and chunk_size >= 1):
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+        raise ParameterError(f"chunk_size must be a positive integer, got {chunk_size!r}",
+                             param="chunk_size")
     equal = math.ceil(N / math.ceil(N / chunk_size))  # the fewest chunks, of equal size
     return n_dev * math.ceil(equal / n_dev)
 
@@ -630,7 +622,8 @@ def _config(model, method, free, n_steps, summary_only, max_impacts, max_pieces,
     if max_pieces is None:
         max_pieces = model.default_max_pieces() if method == "rk4" else 4096
     if not (isinstance(max_pieces, int) and max_pieces >= 2):
-        raise ValueError(f"max_pieces must be an integer >= 2, got {max_pieces!r}")
+        raise ParameterError(f"max_pieces must be an integer >= 2, got {max_pieces!r}",
+                             param="max_pieces")
     return StepperConfig(
         method=method, substeps=default_substeps(substeps, free, method), n_steps=n_steps,
         forced=not free, full=not summary_only, max_impacts=max_impacts,

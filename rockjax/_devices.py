@@ -1,16 +1,17 @@
-"""All CPU cores by default: one JAX CPU device per usable core, set at `import rockjax`.
+"""The CPU device count that `rockjax.configure` asks JAX for.
 
 JAX's CPU backend exposes a single device unless told otherwise, and a batch split over one
 device runs on one core. `simulate_batch` (and `rockjax sweep`) shard every chunk over
-`jax.local_devices()`, so rockjax asks for one CPU device per core when it is imported,
-through JAX's own setting `jax_num_cpu_devices`, and only when all of these hold:
+`jax.local_devices()`, so `rockjax.configure()` (called by the command line, not by
+`import rockjax`) asks for one CPU device per usable core through JAX's own setting
+`jax_num_cpu_devices`, unless the user chose a count: `JAX_NUM_CPU_DEVICES` (or
+`jax_num_cpu_devices` set in code) and `--xla_force_host_platform_device_count` in
+`XLA_FLAGS` are respected as given, and `ROCKJAX_CPU_DEVICES` chooses the count that
+``cpu_devices="all"`` asks for (`ROCKJAX_CPU_DEVICES=1` keeps JAX's single device).
 
-- JAX's backend is not yet initialised (no JAX computation has run before `import rockjax`;
-  after that the device count is fixed for the process);
-- the user has not chosen a count: `JAX_NUM_CPU_DEVICES` (or `jax_num_cpu_devices` set in
-  code) and `--xla_force_host_platform_device_count` in `XLA_FLAGS` are respected as given;
-- `ROCKJAX_CPU_DEVICES` is not set; set it to a number to choose the count rockjax asks for
-  (`ROCKJAX_CPU_DEVICES=1` keeps JAX's single device).
+JAX fixes the count when its backend starts (the first computation); after that it refuses
+the setting with a RuntimeError, which is how this module finds out (JAX has no public
+"backend started" query): the count then stays, and `configure` says so.
 
 Extra CPU devices cost nothing to code that does not use them: a single run still runs on
 device 0.
@@ -22,8 +23,11 @@ import os
 
 import jax
 
-#: what `use_all_cores` did at import: "set", or why it left the count alone
+#: what the last `choose_cpu_devices` did: "set", or why it left the count alone
 DEVICE_CHOICE: dict = {"action": "not run", "count": None}
+
+#: the action when JAX's backend had started before the count was asked for
+STARTED = "backend already initialised"
 
 
 def usable_cores() -> int:
@@ -48,24 +52,72 @@ def _requested() -> int | None:
     return n
 
 
-def use_all_cores() -> dict:
-    """Ask JAX for one CPU device per usable core (or `ROCKJAX_CPU_DEVICES`), unless the
-    backend is already initialised or the user chose a count. Returns (and records in
-    `DEVICE_CHOICE`) what it did."""
-    from jax._src import xla_bridge
+def _user_choice() -> dict | None:
+    """The count the user chose outside rockjax (XLA_FLAGS, JAX_NUM_CPU_DEVICES or
+    jax_num_cpu_devices in code), as a choice; None if none."""
+    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", ""):
+        return {"action": "XLA_FLAGS sets the count", "count": None}
+    if jax.config.jax_num_cpu_devices != -1:
+        return {"action": "jax_num_cpu_devices set by the user",
+                "count": int(jax.config.jax_num_cpu_devices)}
+    return None
 
-    requested = _requested()
-    if xla_bridge.backends_are_initialized():
-        choice = {"action": "backend already initialised", "count": None}
-    elif "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", ""):
-        choice = {"action": "XLA_FLAGS sets the count", "count": None}
-    elif requested is None and jax.config.jax_num_cpu_devices != -1:
-        choice = {"action": "jax_num_cpu_devices set by the user",
-                  "count": int(jax.config.jax_num_cpu_devices)}
-    else:
-        n = usable_cores() if requested is None else requested
+
+def _ask(n: int) -> dict:
+    try:
         jax.config.update("jax_num_cpu_devices", n)
-        choice = {"action": "set", "count": n}
+    except RuntimeError:  # JAX refuses it once its backend has started
+        return {"action": STARTED, "count": len(jax.local_devices())}
+    return {"action": "set", "count": n}
+
+
+def choose_cpu_devices(cpu_devices="all") -> dict:
+    """Ask JAX for `cpu_devices` CPU devices: ``"all"``, one per usable core (or
+    `ROCKJAX_CPU_DEVICES`) unless the user chose a count; an int, that count; None, leave
+    the count alone. Returns (and records in `DEVICE_CHOICE`) what it did."""
+    if cpu_devices is None:
+        choice = {"action": "left alone", "count": None}
+    elif cpu_devices == "all":
+        requested = _requested()
+        user = _user_choice() if requested is None else None
+        choice = user or _ask(usable_cores() if requested is None else requested)
+    elif isinstance(cpu_devices, int) and not isinstance(cpu_devices, bool) and cpu_devices >= 1:
+        choice = _ask(cpu_devices)
+    else:
+        from ._errors import ParameterError
+
+        raise ParameterError(
+            f"cpu_devices must be 'all', a positive integer or None, got {cpu_devices!r}",
+            param="cpu_devices")
     DEVICE_CHOICE.clear()
     DEVICE_CHOICE.update(choice)
     return choice
+
+
+#: whether `advise_configure` has looked (it warns at most once per process)
+_ADVISED = {"done": False}
+
+
+def advise_configure() -> None:
+    """Warn once (`rockjax.ConfigurationWarning`) when a batch is about to run on a single
+    CPU device although this process may use more cores and nobody chose a count:
+    `rockjax.configure()` was not called and none of ``XLA_FLAGS``,
+    ``JAX_NUM_CPU_DEVICES`` and ``ROCKJAX_CPU_DEVICES`` is set. Cheap after the first call."""
+    if _ADVISED["done"]:
+        return
+    _ADVISED["done"] = True
+    if DEVICE_CHOICE["action"] != "not run" or _user_choice() is not None or (
+            os.environ.get("ROCKJAX_CPU_DEVICES", "").strip()):
+        return
+    devices = jax.local_devices()
+    cores = usable_cores()
+    if len(devices) == 1 and devices[0].platform == "cpu" and cores > 1:
+        import warnings
+
+        from ._errors import ConfigurationWarning
+
+        warnings.warn(
+            f"this batch runs on 1 JAX CPU device although {cores} cores are usable; call "
+            "rockjax.configure() before any JAX computation for one device per core (or "
+            "rockjax.configure(cpu_devices=None) to keep one device and silence this)",
+            ConfigurationWarning, stacklevel=3)

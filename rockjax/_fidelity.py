@@ -31,10 +31,15 @@ def _concrete(x):
     return not isinstance(x, jax.core.Tracer)
 
 
-def sdof_lift_off_message(model, structure, forced, peak_u, model_name=None):
+#: what the warning advises, in Python terms (the command line passes its own options)
+ADVICE = ("use model=\"rigid_body\" (the body's own one-DOF equation, about as fast) or "
+          "\"two_spring_2dof\". See docs/models.md; silence with fidelity_warning=False")
+
+
+def sdof_lift_off_message(model, structure, forced, peak_u, model_name=None, advice=ADVICE):
     """The warning's text when the paper's SDOF (`model`, an `SDOF`) lifted a structure off
     by more than `LIFT_OFF_LIMIT` u_crit under a ground motion; else None. `peak_u` [m] may
-    be batched (the message then counts the runs)."""
+    be batched (the message then counts the runs). `advice` ends it (`ADVICE`)."""
     if not (forced and isinstance(model, SDOF)):
         return None
     if not (_concrete(peak_u) and _concrete(structure.u_crit)):
@@ -49,9 +54,7 @@ def sdof_lift_off_message(model, structure, forced, peak_u, model_name=None):
         f"the paper's SDOF model ({name!r}) lifted the structure off to "
         f"{float(ratio[over].max()):.0f} u_crit{runs}: under ground motion Eq. 1 puts the "
         "whole inertial force at the top mass and over-predicts the rocking body's peak by "
-        "a median of tens of per cent (benchmarks/fidelity.md); use model=\"rigid_body\" "
-        "(the body's own one-DOF equation, about as fast) or \"two_spring_2dof\". See "
-        "docs/models.md; silence with fidelity_warning=False"
+        f"a median of tens of per cent (benchmarks/fidelity.md); {advice}"
     )
 
 

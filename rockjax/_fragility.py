@@ -39,6 +39,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.stats import norm
 
+from ._config import ensure_x64
+from ._errors import ParameterError
 from ._intensity import pga, pgd, pgv, spectral_acceleration
 from ._kinematics import theta_from_u
 from ._records import G_STANDARD
@@ -76,8 +78,8 @@ def parse_im(im):
                 T = float("nan")
             if np.isfinite(T) and T > 0:
                 return "Sa", T, IM_UNITS["Sa"]
-    raise ValueError(f"im must be 'PGA', 'PGV', 'PGD', 'Sa(T)' with a period T > 0 in "
-                     f"seconds such as 'Sa(1.0)', or 'scale', got {im!r}")
+    raise ParameterError(f"im must be 'PGA', 'PGV', 'PGD', 'Sa(T)' with a period T > 0 in "
+                         f"seconds such as 'Sa(1.0)', or 'scale', got {im!r}", param="im")
 
 
 def im_label(name, period):
@@ -108,19 +110,19 @@ def parse_limit(limit):
         if text == "overturned":
             return "overturned", None
         if "=" not in text:
-            raise ValueError(f"{msg}, got {limit!r}")
+            raise ParameterError(f"{msg}, got {limit!r}", param="limit")
         limit = tuple(p.strip() for p in text.split("=", 1))
     if not isinstance(limit, (tuple, list)) or len(limit) != 2 or limit[0] not in (
             "uplift", "rotation"):
-        raise ValueError(f"{msg}, got {limit!r}")
+        raise ParameterError(f"{msg}, got {limit!r}", param="limit")
     try:
         thr = float(limit[1])
     except (TypeError, ValueError):
-        raise ValueError(f"limit: the {limit[0]} threshold must be a number, got "
-                         f"{limit[1]!r}") from None
+        raise ParameterError(f"limit: the {limit[0]} threshold must be a number, got "
+                             f"{limit[1]!r}", param="limit") from None
     if not (np.isfinite(thr) and thr > 0):
-        raise ValueError(f"limit: the {limit[0]} threshold must be positive and finite, "
-                         f"got {limit[1]!r}")
+        raise ParameterError(f"limit: the {limit[0]} threshold must be positive and finite, "
+                             f"got {limit[1]!r}", param="limit")
     return limit[0], thr
 
 
@@ -362,7 +364,8 @@ class FragilityResult:
         of the shape of `im`, a float for a scalar."""
         x = np.asarray(im, float)
         if np.any(~np.isfinite(x) | (x < 0)):
-            raise ValueError(f"im must be finite numbers >= 0 [{self.im_unit}], got {im!r}")
+            raise ParameterError(f"im must be finite numbers >= 0 [{self.im_unit}], got {im!r}",
+                                 param="im")
         with np.errstate(divide="ignore"):
             p = _probability(np.log(self.median), self.beta, np.log(x).reshape(-1))
         p = p.reshape(x.shape)
@@ -404,15 +407,18 @@ def _check_fit_args(sweep_result, n_bootstrap, confidence, seed, grid):
                         f"got {type(sweep_result).__name__}")
     if isinstance(n_bootstrap, bool) or not isinstance(n_bootstrap, (int, np.integer)) or (
             n_bootstrap < 0):
-        raise ValueError(f"n_bootstrap must be an integer >= 0, got {n_bootstrap!r}")
+        raise ParameterError(f"n_bootstrap must be an integer >= 0, got {n_bootstrap!r}",
+                             param="n_bootstrap")
     if not (isinstance(confidence, (int, float, np.floating)) and 0 < confidence < 1):
-        raise ValueError(f"confidence must lie in (0, 1), e.g. 0.9, got {confidence!r}")
+        raise ParameterError(f"confidence must lie in (0, 1), e.g. 0.9, got {confidence!r}",
+                             param="confidence")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
-        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+        raise ParameterError(f"seed must be an integer or None, got {seed!r}", param="seed")
     if grid is not None:
         g = np.asarray(grid, float)
         if g.ndim != 1 or g.size < 2 or not np.all(np.isfinite(g)) or np.any(g <= 0):
-            raise ValueError(f"grid must be a 1-D array of >= 2 positive IM values, got {grid!r}")
+            raise ParameterError(
+                f"grid must be a 1-D array of >= 2 positive IM values, got {grid!r}", param="grid")
 
 
 def _degenerate(x, y, name, unit, limit):
@@ -431,11 +437,11 @@ def _check_data(x, y, name, unit, limit, status):
     """A ValueError for data without a fit: no run used, no exceedance or no survivor."""
     if x.size == 0:
         failed = {n: int(np.sum(status == STATUS[n])) for n in FAILED}
-        raise ValueError(f"sweep_result: no run completed or overturned ({failed}); nothing "
-                         "to fit")
+        raise ParameterError(f"sweep_result: no run completed or overturned ({failed}); nothing "
+                             "to fit", param="sweep_result")
     msg = _degenerate(x, y, name, unit, limit)
     if msg:
-        raise ValueError(msg)
+        raise ParameterError(msg, param="scales")
 
 
 def _main_fit(ln_theta, outcome, name, unit, limit):
@@ -493,6 +499,7 @@ def fragility(sweep_result, im="PGA", limit="overturned", *, n_bootstrap=1000,
     **Returns:** a `FragilityResult`. Errors: no run completed or overturned; no run (or
     every run) reached the limit. Separated data give β = 0 with a RuntimeWarning.
     """
+    ensure_x64()
     _check_fit_args(sweep_result, n_bootstrap, confidence, seed, grid)
     name, period, unit = parse_im(im)
     kind, threshold = parse_limit(limit)
@@ -500,7 +507,7 @@ def fragility(sweep_result, im="PGA", limit="overturned", *, n_bootstrap=1000,
     base = np.array([record_im(r, name, period) for r in res.records])
     bad = [lab for lab, v in zip(res.labels, base) if not (np.isfinite(v) and v > 0)]
     if bad:
-        raise ValueError(f"im: {label} is zero for record(s) {', '.join(bad)}")
+        raise ParameterError(f"im: {label} is zero for record(s) {', '.join(bad)}", param="im")
     x = base[:, None] * res.scales[None, :]
     y = exceedances(res, kind, threshold)
     used = np.isin(res.status, USABLE)

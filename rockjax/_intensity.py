@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._errors import ParameterError
 from ._excitation import GroundMotion
 from ._records import Record
 
@@ -33,17 +34,18 @@ def _series(record, dt):
         return np.asarray(record.accel, float), float(record.dt)
     if isinstance(record, GroundMotion):
         if np.ndim(record.accel) != 1 or np.ndim(record.dt) or np.ndim(record.scale):
-            raise ValueError("record: a GroundMotion of one record (1-D accel, scalar dt and "
-                             "scale)")
+            raise ParameterError("record: a GroundMotion of one record (1-D accel, scalar dt and "
+                                 "scale)", param="record")
         return np.asarray(record.accel, float) * float(record.scale), float(record.dt)
     a = np.asarray(record, float)
     if a.ndim != 1 or a.size < 2:
-        raise ValueError(f"record must be a Record or a 1-D array of >= 2 samples, got "
-                         f"shape {a.shape}")
+        raise ParameterError(f"record must be a Record or a 1-D array of >= 2 samples, got "
+                             f"shape {a.shape}", param="record")
     if dt is None or not np.isfinite(dt) or dt <= 0:
-        raise ValueError(f"dt must be a positive number of seconds with an array, got {dt!r}")
+        raise ParameterError(f"dt must be a positive number of seconds with an array, got {dt!r}",
+                             param="dt")
     if not np.all(np.isfinite(a)):
-        raise ValueError("record: the acceleration has non-finite samples")
+        raise ParameterError("record: the acceleration has non-finite samples", param="record")
     return a, float(dt)
 
 
@@ -51,7 +53,7 @@ def integrate_record(record, dt=None, *, baseline="end"):
     """(t [s], a [m/s²], v [m/s], d [m]) of a record, integrated exactly (module docs)."""
     a, dt = _series(record, dt)
     if baseline not in ("end", None):
-        raise ValueError(f"baseline must be 'end' or None, got {baseline!r}")
+        raise ParameterError(f"baseline must be 'end' or None, got {baseline!r}", param="baseline")
     t = np.arange(a.size) * dt
     if baseline == "end":
         v_end = dt * (np.sum(a) - 0.5 * (a[0] + a[-1]))
@@ -110,9 +112,10 @@ def spectral_acceleration(record, periods, zeta=0.05, dt=None):
     a, dt = _series(record, dt)
     T = np.asarray(periods, float)
     if T.size == 0 or not np.all(np.isfinite(T)) or np.any(T <= 0):
-        raise ValueError(f"periods must be positive numbers of seconds, got {periods!r}")
+        raise ParameterError(f"periods must be positive numbers of seconds, got {periods!r}",
+                             param="periods")
     if not (np.isfinite(zeta) and 0 <= zeta < 1):
-        raise ValueError(f"zeta must lie in [0, 1), got {zeta!r}")
+        raise ParameterError(f"zeta must lie in [0, 1), got {zeta!r}", param="zeta")
     omegas = 2 * np.pi / T.ravel()
     peaks = _peaks(jnp.asarray(a), jnp.asarray(dt), jnp.asarray(omegas), jnp.asarray(zeta))
     return (omegas**2 * np.asarray(peaks)).reshape(T.shape)

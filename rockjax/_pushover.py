@@ -28,6 +28,9 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
+from ._config import ensure_x64
+from ._errors import ParameterError
+
 
 class PushoverResult(eqx.Module):
     """Result of `rockjax.pushover`, each field with the shape of `u`.
@@ -150,16 +153,17 @@ def pushover(structure, u) -> PushoverResult:
     res = rockjax.pushover(s, jnp.linspace(0.0, 0.3, 200))
     ```
     """
+    ensure_x64()
     if not isinstance(u, jax.core.Tracer):
         ua = np.asarray(u, dtype=float)
         if not np.all(np.isfinite(ua)):
-            raise ValueError(f"u must be finite, got {ua}")
+            raise ParameterError(f"u must be finite, got {ua}", param="u")
         reach = np.asarray(structure.R_e * (1.0 + jnp.sin(structure.alpha_e)))
         if np.any(np.abs(ua) >= reach):
-            raise ValueError(
+            raise ParameterError(
                 f"u must be smaller than the body's reach R_e (1 + sin alpha_e) = "
                 f"{float(np.max(reach)):.6g} m (the rigid body cannot move its top further), "
-                f"got |u| up to {float(np.max(np.abs(ua))):.6g} m"
+                f"got |u| up to {float(np.max(np.abs(ua))):.6g} m", param="u"
             )
     u = jnp.asarray(u, dtype=jnp.result_type(structure.B))
     return _pushover(structure, u)

@@ -38,6 +38,7 @@ import numpy as np
 
 from . import _units
 from ._units import G_STANDARD
+from ._errors import ParameterError, Placeholder
 
 __all__ = ["G_STANDARD", "Record", "common_time_step", "read_record"]
 
@@ -103,24 +104,28 @@ class Record:
         try:
             dt = float(self.dt)
         except (TypeError, ValueError):
-            raise ValueError(f"Record: dt must be a number [s], got {self.dt!r}") from None
+            raise ParameterError(f"Record: dt must be a number [s], got {self.dt!r}",
+                                 param="dt") from None
         if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"Record: dt must be finite and > 0 [s], got {self.dt!r}")
+            raise ParameterError(f"Record: dt must be finite and > 0 [s], got {self.dt!r}",
+                                 param="dt")
         try:
             accel = np.array(self.accel, dtype=np.float64, copy=True)
         except (TypeError, ValueError) as e:
-            raise ValueError(f"Record: accel must be an array of numbers ({e})") from None
+            raise ParameterError(f"Record: accel must be an array of numbers ({e})",
+                                 param="accel") from None
         if accel.ndim != 1:
-            raise ValueError(f"Record: accel must be 1-D, got shape {accel.shape}")
+            raise ParameterError(f"Record: accel must be 1-D, got shape {accel.shape}",
+                                 param="accel")
         if accel.size < 2:
-            raise ValueError(f"Record: accel needs at least 2 samples, got {accel.size}")
+            raise ParameterError(f"Record: accel needs at least 2 samples, got {accel.size}",
+                                 param="accel")
         if not np.all(np.isfinite(accel)):
-            raise ValueError("Record: accel contains NaN or inf values")
+            raise ParameterError("Record: accel contains NaN or inf values", param="accel")
         if self.units_in_file not in RECORD_UNITS:
-            raise ValueError(
+            raise ParameterError(
                 f"Record: units_in_file must be one of {', '.join(RECORD_UNITS)}, got "
-                f"{self.units_in_file!r}"
-            )
+                f"{self.units_in_file!r}", param="units_in_file")
         accel.setflags(write=False)
         object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "accel", accel)
@@ -155,7 +160,7 @@ def _normalize_units(units: str) -> str:
     try:
         return _units.normalize(units, _ACCEL)
     except _units.UnitError as e:
-        raise ValueError(f"unknown units={units!r}; {e}") from None
+        raise ParameterError(f"unknown units={units!r}; {e}", param="units") from None
 
 
 def _classify_unit_token(token: str, phrase: bool) -> str | None:
@@ -221,27 +226,27 @@ def _resolve_units(
     if stated is not None and stated[0] == "both":
         if given is None:
             named = stated[2]
-            raise ValueError(
-                f"{source}: the header states conflicting units {named} ({stated[1]}); "
-                f"pass {' or '.join(f'units={u!r}' for u in named)}"
+            raise ParameterError(
+                f"{source}: the header states conflicting units {named} ({stated[1]})",
+                param="units", choices=tuple(named),
             )
         return given, "given"
     if stated is not None:
         units, text = stated
         if given is not None and _units.factor(given, _ACCEL) != _units.factor(units, _ACCEL):
-            raise ValueError(
+            raise ParameterError(
                 f"{source}: the file states units {units} ({text} in its header) but "
-                f"units={given!r} was given; omit units= or pass units={units!r}"
+                f"{given} was given", param="units", omit=True, choices=(units,),
             )
         return units, "file header"
     if given is not None:
         return given, "given"
     if default is not None:
         return default, "AT2 default"
-    raise ValueError(
-        f"{source}: the units of the acceleration are not stated in the file; "
-        f"pass units='g' or units='m/s2' (or another unit of acceleration: "
-        f"{', '.join(RECORD_UNITS[2:])})"
+    raise ParameterError(
+        f"{source}: the units of the acceleration are not stated in the file (units of "
+        f"acceleration: {', '.join(RECORD_UNITS)})",
+        param="units", choices=("g", "m/s2"),
     )
 
 
@@ -278,9 +283,9 @@ def _non_numeric(source: str, lineno: int, line: str) -> ValueError:
 
 def _check_dt_arg(dt_arg: float | None, dt_file: float, source: str) -> None:
     if dt_arg is not None and abs(dt_arg - dt_file) > 1e-6 * dt_file + 1e-12:
-        raise ValueError(
-            f"{source}: dt={dt_arg!r} was passed but the file has a time step of "
-            f"{dt_file!r} s; omit dt= for this file"
+        raise ParameterError(
+            f"{source}: a time step of {dt_arg!r} s was given but the file has a time step "
+            f"of {dt_file!r} s", param="dt", omit=True,
         )
 
 
@@ -300,9 +305,10 @@ def _read_at2(
         )
     npts_dt = _match_npts_dt(lines[3])
     if npts_dt is None:
-        raise ValueError(
+        raise ParameterError(
             f"{source}, line 4: expected the PEER AT2 header 'NPTS= ..., DT= ... SEC', "
-            f"got {lines[3].strip()!r} (pass format= if this is not an AT2 file)"
+            f"got {lines[3].strip()!r} (a file named .AT2 is read as PEER AT2)",
+            param="format", choices=_FORMATS[1:],
         )
     npts, dt = npts_dt
     if not (math.isfinite(dt) and dt > 0.0):
@@ -399,9 +405,10 @@ def _detect_format(lines: list[str], path: Path, source: str) -> str:
             return "two_column"
         if len(vals) == 1:
             return "one_column"
-        raise ValueError(
+        raise ParameterError(
             f"{source}, line {lineno}: cannot detect the file format from {len(vals)} values "
-            f"per line; pass format='at2', 'two_column' or 'one_column'"
+            "per line (a record file is PEER AT2, two columns (t, a) or one column (a))",
+            param="format", choices=_FORMATS,
         )
     raise ValueError(f"{source}: no numeric data found (empty file or header only)")
 
@@ -475,15 +482,16 @@ def read_record(
         try:
             dt = float(dt)
         except (TypeError, ValueError):
-            raise ValueError(f"dt must be a number of seconds, got dt={dt!r}") from None
+            raise ParameterError(f"dt must be a number of seconds, got {dt!r}",
+                                 param="dt") from None
         if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"dt must be finite and > 0 [s], got dt={dt!r}")
+            raise ParameterError(f"dt must be finite and > 0 [s], got {dt!r}", param="dt")
     if format is not None:
         fmt = str(format).strip().lower().replace("-", "_")
         if fmt not in _FORMATS:
-            raise ValueError(
-                f"unknown format={format!r}; expected one of {', '.join(map(repr, _FORMATS))}"
-            )
+            raise ParameterError(
+                f"unknown format={format!r}; expected one of {', '.join(map(repr, _FORMATS))}",
+                param="format")
         format = fmt
     if not p.exists():
         raise FileNotFoundError(f"ground-motion record not found: {source}")
@@ -502,9 +510,8 @@ def read_record(
     else:
         ncols = 2 if format == "two_column" else 1
         if ncols == 1 and dt is None:
-            raise ValueError(
-                f"{source}: a one-column file has no time information; pass dt=<time step in s>"
-            )
+            raise ParameterError(f"{source}: a one-column file has no time information",
+                                 param="dt", choices=(Placeholder("time step in s"),))
         data, linenos, header = _read_columns(lines, source, ncols)
         accel = data[:, -1]
         if accel.size < 2:

@@ -26,6 +26,7 @@ from ._checks import (
     stepper_grid_step,
     strong,
 )
+from ._config import ensure_x64
 from ._excitation import AbstractExcitation, GroundMotion
 from ._fidelity import warn_sdof_lift_off
 from ._records import Record
@@ -118,6 +119,7 @@ def simulate(
     res.n_impacts, res.peak_u
     ```
     """
+    ensure_x64()
     if isinstance(excitation, Record):  # e.g. rockjax.datasets.el_centro(): scale 1
         excitation = GroundMotion.from_record(excitation)
     check_scene(structure, excitation)

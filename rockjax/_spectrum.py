@@ -27,8 +27,11 @@ import numpy as np
 
 from . import pulses as _pulses
 from ._batch import simulate_batch
+from ._checks import check_one_structure, check_periods
+from ._config import ensure_x64
+from ._errors import ParameterError
 from ._response import STATUS
-from ._structure import FIELDS, RockingStructure
+from ._structure import RockingStructure
 from ._sweep import failed_runs
 from .models import get_model
 
@@ -152,34 +155,18 @@ def frequency_parameter(structure) -> float:
     return math.sqrt(float(structure.W * structure.R_c / structure.I_O))
 
 
-def _check_periods(periods):
-    T = np.asarray(periods, dtype=float)
-    if T.ndim == 0:
-        T = T[None]
-    if T.ndim != 1 or T.size == 0:
-        raise ValueError(f"periods must be a non-empty 1-D array [s], got shape {T.shape}")
-    if not np.all(np.isfinite(T) & (T > 0)):
-        raise ValueError(f"periods must be positive and finite [s], got {T}")
-    return T
-
-
-def _check_structure(structure):
-    if not isinstance(structure, RockingStructure):
-        raise ValueError(f"structure must be a RockingStructure, got {type(structure).__name__}")
-    if any(np.ndim(getattr(structure, k)) for k in FIELDS):
-        raise ValueError("structure must hold one structure (scalar fields): a spectrum "
-                         "is computed for one structure at a time")
-
-
 def _check_options(rtol, n_scan, max_ratio, t_free):
     if not (isinstance(rtol, (int, float)) and 1e-8 <= rtol <= 0.1):
-        raise ValueError(f"rtol must lie in [1e-8, 0.1], got {rtol!r}")
+        raise ParameterError(f"rtol must lie in [1e-8, 0.1], got {rtol!r}", param="rtol")
     if not (isinstance(n_scan, int) and 8 <= n_scan <= 4096):
-        raise ValueError(f"n_scan must be an integer in [8, 4096], got {n_scan!r}")
+        raise ParameterError(f"n_scan must be an integer in [8, 4096], got {n_scan!r}",
+                             param="n_scan")
     if not (isinstance(max_ratio, (int, float)) and max_ratio > 4):
-        raise ValueError(f"max_ratio must be a number > 4, got {max_ratio!r}")
+        raise ParameterError(f"max_ratio must be a number > 4, got {max_ratio!r}",
+                             param="max_ratio")
     if t_free is not None and not (np.isfinite(t_free) and t_free > 0):
-        raise ValueError(f"t_free must be a positive number of seconds, got {t_free!r}")
+        raise ParameterError(f"t_free must be a positive number of seconds, got {t_free!r}",
+                             param="t_free")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -352,15 +339,18 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact
     **Returns:** an `OverturningSpectrum` (`.plot()` draws it as the literature does,
     amplitude / ($g\tan\alpha$) against $\omega_p/p$, or $p\,t_1$ for a rectangular pulse).
     """
+    ensure_x64()
     start = time.perf_counter()
-    _check_structure(structure)
+    check_one_structure(structure, "a spectrum is computed for one structure at a time")
     if kind not in _pulses.KINDS:
-        raise ValueError(f"kind must be one of {sorted(_pulses.KINDS)}, got {kind!r}")
+        raise ParameterError(f"kind must be one of {sorted(_pulses.KINDS)}, got {kind!r}",
+                             param="kind")
     kind = _pulses.KINDS[kind]
-    T = _check_periods(periods)
+    T = check_periods(periods)
     _check_options(rtol, n_scan, max_ratio, t_free)
     if not (isinstance(substeps, int) and substeps >= 1):
-        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+        raise ParameterError(f"substeps must be a positive integer, got {substeps!r}",
+                             param="substeps")
     get_model(model, impact)  # the model and impact rule checked before any run
     p = frequency_parameter(structure)
     gta = float(structure.g * structure.B / structure.H_c)

@@ -4,11 +4,19 @@ As diffrax's `RESULTS`, each entry is an `equinox.Enumeration` item with a messa
 `Response` stores the integer code (so that batched results are plain int arrays that
 NumPy, pandas and `jax.vmap` handle); `status_name(code)`, `status_message(code)` and
 `status_code(name)` convert.
+
+Only the enumeration's public face is used: its items (``Status.overturned``), the message
+of an item (``Status[item]``) and an item's integer code, its one pytree leaf. The names in
+code order are `NAMES` (equinox keeps no public list of them; `tests/test_status.py`
+checks that `NAMES` and `Status` agree).
 """
 
 from __future__ import annotations
 
 import equinox as eqx
+import jax
+
+from ._errors import ParameterError
 
 
 class Status(eqx.Enumeration):
@@ -25,30 +33,37 @@ class Status(eqx.Enumeration):
     )
 
 
+#: the `Status` names in code order (code 0 first)
+NAMES = ("completed", "overturned", "max_impacts", "solver_failure")
+
+
+def _code(item) -> int:
+    """An enumeration item's integer code: its one pytree leaf."""
+    (value,) = jax.tree_util.tree_leaves(item)
+    return int(value)
+
+
 def status_names() -> tuple[str, ...]:
     """The `Status` names in code order (code 0 first)."""
-    items = Status._name_to_item
-    return tuple(sorted(items, key=lambda n: int(items[n]._value)))
+    return NAMES
 
 
 def status_code(name: str) -> int:
     """The integer code stored in `Response.status` for a status name."""
-    try:
-        return int(Status._name_to_item[name]._value)
-    except KeyError:
-        raise ValueError(
-            f"status must be one of {list(status_names())}, got {name!r}"
-        ) from None
+    if name not in NAMES:
+        raise ParameterError(f"status must be one of {list(NAMES)}, got {name!r}",
+                             param="status")
+    return _code(getattr(Status, name))
 
 
 def status_name(code) -> str:
     """The name of an integer code (0 -> "completed", ...)."""
-    return status_names()[int(code)]
+    return NAMES[int(code)]
 
 
 def status_message(code) -> str:
     """The message that `Status` carries for an integer code."""
-    return Status._index_to_message[int(code)]
+    return Status[getattr(Status, status_name(code))]
 
 
 #: name -> integer code, e.g. ``STATUS["overturned"] == 1`` (kept for compatibility)

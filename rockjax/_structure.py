@@ -11,6 +11,9 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from ._config import ensure_x64
+from ._errors import ParameterError
+
 #: the fields of a RockingStructure, in order
 FIELDS = ("m_e", "m_b", "H_e", "H_b", "B", "I_eg", "I_bg", "k_f", "g")
 _FIELDS = FIELDS
@@ -18,6 +21,7 @@ _FIELDS = FIELDS
 
 def _as_float_array(x: ArrayLike) -> Float[Array, "..."]:
     """Convert to a floating JAX array, keeping an existing floating dtype (no downcast)."""
+    ensure_x64()
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
         # explicit dtype drops a weak type, so jnp.asarray(1.0) and 1.0 trace alike
         return jnp.asarray(x, dtype=x.dtype)
@@ -329,7 +333,7 @@ def validate_structure(s: RockingStructure) -> None:
     for name in _FIELDS:
         v = vals(name)
         if v is not None and not np.all(np.isfinite(v)):
-            raise ValueError(f"{name} must be finite, got {v}")
+            raise ParameterError(f"{name} must be finite, got {v}", param=name)
     for name, what in (
         ("m_e", "mass"),
         ("m_b", "mass"),
@@ -341,21 +345,22 @@ def validate_structure(s: RockingStructure) -> None:
     ):
         v = vals(name)
         if v is not None and np.any(v <= 0):
-            raise ValueError(f"{name} ({what}) must be positive, got {v}")
+            raise ParameterError(f"{name} ({what}) must be positive, got {v}", param=name)
     for name in ("I_eg", "I_bg"):
         v = vals(name)
         if v is not None and np.any(v < 0):
-            raise ValueError(f"{name} (rotary inertia) must be non-negative, got {v}")
+            raise ParameterError(f"{name} (rotary inertia) must be non-negative, got {v}",
+                                 param=name)
     if all(_is_concrete(getattr(s, n)) for n in _FIELDS):
         lhs = np.asarray(2.0 * s.k_f * s.B**2)
         rhs = np.asarray(s.W * s.H_c)
         if np.any(lhs <= rhs):
             kmin = np.asarray(s.W * s.H_c / (2.0 * s.B**2))
-            raise ValueError(
+            raise ParameterError(
                 f"k_f is too soft for the structure to stand: need 2 k_f B^2 > W H_c, "
                 f"i.e. k_f > {np.array2string(kmin, precision=6)} N/m "
                 f"(got k_f = {np.asarray(s.k_f)}); the pre-uplift stiffness K1 (Eq. 15) "
-                "would not be positive"
+                "would not be positive", param="k_f"
             )
 
 

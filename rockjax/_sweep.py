@@ -21,12 +21,15 @@ import time
 import numpy as np
 
 from ._batch import DEFAULT_TAIL, simulate_batch
+from ._checks import check_one_structure, check_scales
+from ._config import ensure_x64
 from ._distributed import Processes
+from ._errors import ParameterError
 from ._excitation import GroundMotion
 from ._fidelity import warn_sdof_lift_off
 from ._records import G_STANDARD, read_record, Record
 from ._status import STATUS, STATUS_NAMES
-from ._structure import FIELDS, RockingStructure
+from ._structure import RockingStructure
 from .models import get_model
 
 #: the Summary fields a SweepResult keeps, each of shape (n_records, n_scales)
@@ -97,15 +100,16 @@ class SweepResult:
         set_ = object.__setattr__
         set_(self, "records", tuple(self.records))
         set_(self, "labels", tuple(str(x) for x in self.labels))
-        set_(self, "scales", _check_scales(self.scales))
+        set_(self, "scales", check_scales(self.scales))
         shape = (len(self.records), self.scales.size)
         if len(self.labels) != shape[0]:
-            raise ValueError(f"labels: {len(self.labels)} for {shape[0]} records")
+            raise ParameterError(f"labels: {len(self.labels)} for {shape[0]} records",
+                                 param="labels")
         for name in SWEEP_FIELDS:
             a = np.asarray(getattr(self, name))
             if a.shape != shape:
-                raise ValueError(f"{name} must have shape (n_records, n_scales) = {shape}, "
-                                 f"got {a.shape}")
+                raise ParameterError(f"{name} must have shape (n_records, n_scales) = {shape}, "
+                                     f"got {a.shape}", param=name)
             set_(self, name, a.astype(np.int64) if name in ("status", "n_impacts") else a)
 
     @property
@@ -219,26 +223,6 @@ def write_csv(path, results, labels):
             w.writerows(res.csv_rows(lab))
 
 
-def _check_structure(structure):
-    if not isinstance(structure, RockingStructure):
-        raise TypeError(f"structure must be a RockingStructure, got {type(structure).__name__}")
-    batched = [f for f in FIELDS if np.ndim(getattr(structure, f)) != 0]
-    if batched:
-        raise ValueError(f"structure: one structure (scalar fields), got arrays in "
-                         f"{', '.join(batched)}; sweep one structure at a time")
-
-
-def _check_scales(scales):
-    try:
-        sc = np.array(scales, dtype=float).reshape(-1) if np.ndim(scales) <= 1 else None
-    except (TypeError, ValueError):
-        raise ValueError(f"scales must be positive numbers, got {scales!r}") from None
-    if sc is None or sc.size == 0 or not np.all(np.isfinite(sc)) or np.any(sc <= 0):
-        raise ValueError(f"scales must be a non-empty 1-D list of positive finite numbers, "
-                         f"got {scales!r}")
-    return sc
-
-
 def _unique(labels):
     """Labels made unique with a #k suffix where they repeat."""
     out = []
@@ -259,13 +243,14 @@ def _as_records(records, labels):
         raise TypeError(f"records must be a sequence of Records, GroundMotions or paths, got "
                         f"{type(records).__name__}") from None
     if not items:
-        raise ValueError("records: the sequence is empty")
+        raise ParameterError("records: the sequence is empty", param="records")
     out, names = [], []
     for i, item in enumerate(items):
         if isinstance(item, (str, os.PathLike)):
             item = read_record(item)
         if isinstance(item, GroundMotion) and (np.ndim(item.accel) != 1 or np.ndim(item.scale)):
-            raise ValueError(f"records: GroundMotion {i} must hold one record (1-D accel)")
+            raise ParameterError(f"records: GroundMotion {i} must hold one record (1-D accel)",
+                                 param="records")
         if not isinstance(item, (Record, GroundMotion)):
             raise TypeError(f"records: item {i} is a {type(item).__name__}, not a Record, "
                             "GroundMotion or path")
@@ -276,7 +261,8 @@ def _as_records(records, labels):
         return tuple(out), _unique(names)
     labels = [str(x) for x in labels]
     if len(labels) != len(out):
-        raise ValueError(f"labels: {len(labels)} labels for {len(out)} records")
+        raise ParameterError(f"labels: {len(labels)} labels for {len(out)} records",
+                             param="labels")
     return tuple(out), tuple(labels)
 
 
@@ -302,9 +288,10 @@ def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, 
     **Example:** `rockjax.sweep(rockjax.mcmanus_column(), ["IELC180.AT2", "elCentro.AT2"],
     np.linspace(0.2, 3.0, 40), model="rigid_body")`.
     """
-    _check_structure(structure)
+    ensure_x64()
+    check_one_structure(structure, "sweep one structure at a time")
     recs, labs = _as_records(records, labels)
-    sc = _check_scales(scales)
+    sc = check_scales(scales)
     clash = [k for k in options if k in _SET_BY_SWEEP]
     if clash:
         raise TypeError(f"sweep sets {', '.join(clash)} itself (every record at every scale, "

@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from ._errors import ParameterError
 from ._excitation import GroundMotion
 
 __all__ = ["KINDS", "one_cosine", "one_sine", "pulse", "rectangular"]
@@ -46,9 +47,9 @@ def _positive(name, x):
     try:
         v = float(x)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive number, got {x!r}") from None
+        raise ParameterError(f"{name} must be a positive number, got {x!r}", param=name) from None
     if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {x!r}")
+        raise ParameterError(f"{name} must be a positive finite number, got {x!r}", param=name)
     return v
 
 
@@ -56,9 +57,11 @@ def _amplitude(amplitude):
     try:
         a = float(amplitude)
     except (TypeError, ValueError):
-        raise ValueError(f"amplitude must be a number [m/s²], got {amplitude!r}") from None
+        raise ParameterError(f"amplitude must be a number [m/s²], got {amplitude!r}",
+                             param="amplitude") from None
     if not math.isfinite(a):
-        raise ValueError(f"amplitude must be finite [m/s²], got {amplitude!r}")
+        raise ParameterError(f"amplitude must be finite [m/s²], got {amplitude!r}",
+                             param="amplitude")
     return a
 
 
@@ -68,9 +71,10 @@ def _steps(length, steps, kind, max_dt):
         least = 1 if kind == "rectangular" else MIN_STEPS
         return max(least, math.ceil(length / _positive("max_dt", max_dt) - 1e-9))
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+        raise ParameterError(f"steps must be a positive integer, got {steps!r}", param="steps")
     if kind != "rectangular" and steps < 8:
-        raise ValueError(f"steps must be at least 8 for a {kind} pulse, got {steps}")
+        raise ParameterError(f"steps must be at least 8 for a {kind} pulse, got {steps}",
+                             param="steps")
     return int(steps)
 
 
@@ -91,7 +95,7 @@ def pulse(kind, amplitude, length, *, steps=None, max_dt=MAX_DT):
     `steps`: sample steps over the pulse (default: enough for a step of at most `max_dt`
     [s], and at least 128 for a sine or cosine)."""
     if kind not in KINDS:
-        raise ValueError(f"kind must be one of {sorted(KINDS)}, got {kind!r}")
+        raise ParameterError(f"kind must be one of {sorted(KINDS)}, got {kind!r}", param="kind")
     kind = KINDS[kind]
     a = _amplitude(amplitude)
     T = _positive("duration" if kind == "rectangular" else "period", length)

@@ -1,5 +1,5 @@
-"""Shared fixtures: x64 on, compile once per session, the generated ground motion that the
-tests use, and the path to the shared real records (optional).
+"""Shared fixtures: `rockjax.configure()` (x64 on), compile once per session, the generated
+ground motion that the tests use, and the path to the shared real records (optional).
 
 No test needs a file from outside the repository: the dynamics tests run on
 `synthetic_motion()`, a record that the project generates. Only the few comparisons that
@@ -19,9 +19,12 @@ import tempfile
 import jax
 import pytest
 
-jax.config.update("jax_enable_x64", True)
+import rockjax
 
-import rockjax  # noqa: E402
+# before anything computes: float64 and one CPU device per core, as the command line does
+# (`import rockjax` alone changes nothing; the computing entry points would turn float64 on
+# with a ConfigurationWarning, an error under the suite's filterwarnings=error)
+rockjax.configure()
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 

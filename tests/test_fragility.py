@@ -397,12 +397,14 @@ def test_cli_json_plot_text_on_real_records(cli_records, tmp_path, column):
     assert "bootstrap     200 resamples of the records (seed 0)" in text
     rc, out, err = _main(base + ["--scales", "0.001:0.002:10"])
     assert rc == 2 and not out
-    assert err.startswith("rockjax fragility: error: no run reached the limit (overturned)")
-    assert "raise --scales" in err and len(err.strip().splitlines()) == 1
+    assert err.startswith(
+        "rockjax fragility: error: --scales: no run reached the limit (overturned)")
+    assert "raise the scales" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("args, match", [
-    (["--im", "PGX"], "--im must be 'PGA'"),
+    (["--im", "PGX"], "argument --im: im must be 'PGA'"),
     (["--limit", "uplift=-1"], "--limit must be overturned, uplift=METRES"),
     (["--limit", "drift"], "--limit must be overturned"),
     (["--bootstrap", "-3"], "--bootstrap must be >= 0"),

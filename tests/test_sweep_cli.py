@@ -22,7 +22,8 @@ from test_records import synthetic, write_at2, write_one_column, write_two_colum
 
 import rockjax
 from rockjax.cli import main
-from rockjax.cli._common import _scales, cli_message, split_record_units
+from rockjax.cli._common import _scales, parameter_message, split_record_units
+from rockjax.cli.sweep import FLAGS
 
 SCALES = [0.5, 1.0, 2.5]
 T1 = 6.0  # the cap: the 10-s record stops here, the 2-s one at its end + TAIL
@@ -217,18 +218,32 @@ def test_record_folder(tmp_path):
     assert "pass --units g or --units m/s2" in line and "units=" not in line
 
 
-def test_cli_message_and_record_units_suffix(tmp_path):
-    assert cli_message("x.dat: not stated; pass units='g' or units='m/s2'") == (
-        "x.dat: not stated; pass --units g or --units m/s2")
-    assert cli_message("one.txt: no time; pass dt=<time step in s>") == (
-        "one.txt: no time; pass --record-dt <time step in s>")
-    assert cli_message("c.dat: dt=0.02 was passed but ...; omit dt= for this file") == (
-        "c.dat: --record-dt 0.02 was given but ...; omit --record-dt for this file")
-    unchanged = "a.AT2 dt = 0.01 s, DT=0.0"
-    assert cli_message(unchanged + ", scale=2") == unchanged + ", --scale 2"
-    assert "pass format" not in cli_message(
-        "m.dat, line 1: cannot detect the file format from 3 values per line; pass "
-        "format='at2', 'two_column' or 'one_column'")
+def test_record_errors_in_cli_terms_and_record_units_suffix(tmp_path):
+    """read_record's errors name their parameter; the CLI names its option for it, with
+    the advice in its own syntax (no rewriting of the message)."""
+    def error(name, text, **kw):
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(rockjax.ParameterError) as e:
+            rockjax.read_record(path, **kw)
+        return e.value
+
+    e = error("x.dat", "0 0.1\n0.01 0.2\n")
+    assert str(e) == (f"{tmp_path / 'x.dat'}: the units of the acceleration are not stated "
+                      "in the file; pass units='g' or units='m/s2'")
+    assert parameter_message(e, FLAGS) == (
+        f"--units: {tmp_path / 'x.dat'}: the units of the acceleration are not stated in the "
+        "file; pass --units g or --units m/s2")
+    e = error("one.txt", "0.1\n0.2\n", units="g")
+    assert str(e).endswith("no time information; pass dt=<time step in s>")
+    assert parameter_message(e, FLAGS).endswith("; pass --record-dt <time step in s>")
+    e = error("c.dat", "0 0.1\n0.01 0.2\n", units="g", dt=0.02)
+    assert str(e).endswith("has a time step of 0.01 s; omit dt=")
+    assert parameter_message(e, FLAGS).startswith("--record-dt: ")
+    assert parameter_message(e, FLAGS).endswith("; omit --record-dt")
+    e = error("m.dat", "0 1 2\n", units="g")  # no option for format=: the message alone
+    assert "pass format='at2'" in str(e)
+    assert parameter_message(e, FLAGS) == e.message and "format=" not in e.message
     assert split_record_units("a.dat:g") == ("a.dat", "g")
     assert split_record_units("C:/data/a.dat:M/S^2") == ("C:/data/a.dat", "m/s2")
     assert split_record_units("a.dat") == ("a.dat", None)
@@ -284,8 +299,8 @@ BAD = [
      "--record: the records' time steps (rec.AT2 dt = 0.01 s, odd.txt dt = 0.0073 s) have no "
      "common step coarser than"),
     (["--record", "missing.at2"], "--record"),
-    (["--record", "rec.AT2:m/s2"], "--record: rec.AT2: the file states units g ('UNITS OF G' "
-                                   "in its header) but --units m/s2 was given; omit --units"),
+    (["--record", "rec.AT2:m/s2"], "--units: rec.AT2: the file states units g ('UNITS OF G' "
+                                   "in its header) but m/s2 was given; omit --units"),
     (["--record", "sine.txt"], "sine.txt: the units of the acceleration are not stated in "
                                "the file; pass --units g or --units m/s2"),
     (["--record", "sine.txt", "--units", "g", "--units", "g"],

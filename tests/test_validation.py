@@ -292,7 +292,7 @@ API = [
          "scale must be finite"),
     # records
     case("R24", "at2", _rec("unitsg.at2", units="m/s2"),
-         "the file states units g ('UNITS OF G' in its header) but units='m/s2' was given"),
+         "the file states units g ('UNITS OF G' in its header) but m/s2 was given"),
     case("R24", "columns", lambda d: GroundMotion.from_file(d / "good.txt", units="m/s2"),
          "the file states units g"),
     case("R1", "missing", _rec("missing.at2"), "ground-motion record not found",
@@ -327,7 +327,8 @@ API = [
     case("R20", "dt-text", _rec("good.txt", dt="abc"), "dt must be a number"),
     case("R20", "from_file", lambda d: GroundMotion.from_file(d / "good.txt", dt=0.0),
          "dt must be finite and > 0"),
-    case("R21", "dt-mismatch", _rec("good.txt", dt=0.5), "dt=0.5 was passed but the file"),
+    case("R21", "dt-mismatch", _rec("good.txt", dt=0.5),
+         "a time step of 0.5 s was given but the file"),
     case("R22", "format", _rec("good.txt", format="xml"), "unknown format='xml'"),
     case("R23", "dt", lambda d: Record(dt=0.0, accel=np.zeros(3)),
          "Record: dt must be finite and > 0"),
@@ -610,7 +611,7 @@ API = [
          "n_scan must be an integer in [8, 4096], got 2"),
     case("O7", "batch", lambda d: rockjax.overturning_spectrum(
         S.replace(k_f=np.full(2, 5e5)), "sine", [1.0]),
-        "structure must hold one structure (scalar fields)"),
+        "structure: one structure (scalar fields), got arrays in k_f"),
 ]
 
 
@@ -680,20 +681,22 @@ CLI = [
     cli("R19", "simulate", ["simulate", "--record", "onecol.txt"],
         "pass --record-dt <time step in s>"),
     cli("R24", "simulate", ["simulate", "--record", "unitsg.at2", "--units", "m/s2"],
-        "but --units m/s2 was given; omit --units or pass --units g"),
-    cli("R24", "sweep", ["sweep", "--record", "unitsg.at2:m/s2"], "but --units m/s2 was given"),
+        "but m/s2 was given; omit --units or pass --units g"),
+    cli("R24", "sweep", ["sweep", "--record", "unitsg.at2:m/s2"],
+        "--units: unitsg.at2: the file states units g"),
     cli("R20", "simulate", ["simulate", "--record", "onecol.txt", "--record-dt", "0"],
         "argument --record-dt: --record-dt must be a positive number"),
     cli("R21", "simulate", ["simulate", "--record", "good.txt", "--record-dt", "0.5"],
-        "--record-dt 0.5 was given but the file has a time step of 0.01 s"),
+        "--record-dt: good.txt: a time step of 0.5 s was given but the file has a time step "
+        "of 0.01 s; omit --record-dt"),
     # simulation parameters
     cli("M2", "simulate-t1-0", ["simulate", "--u0", "0.1", "--t1", "0"], "argument --t1"),
     cli("M2", "simulate-t1-inf", ["simulate", "--u0", "0.1", "--t1", "inf"], "argument --t1"),
     cli("M2", "simulate-t1-nan", ["simulate", "--u0", "0.1", "--t1", "nan"], "argument --t1"),
     cli("M2", "sweep-t1-neg", SWEEP + ["--t1", "-1"], "argument --t1"),
-    cli("M7", "simulate-above", SIM + ["--r", "1.5"], "--r must lie in [0, 1], got 1.5"),
-    cli("M7", "simulate-negative", SIM + ["--r", "-0.1"], "--r must lie in [0, 1]"),
-    cli("M7", "sweep", SWEEP + ["--r", "1.5"], "--r must lie in [0, 1]"),
+    cli("M7", "simulate-above", SIM + ["--r", "1.5"], "--r: r must lie in [0, 1], got 1.5"),
+    cli("M7", "simulate-negative", SIM + ["--r", "-0.1"], "--r: r must lie in [0, 1]"),
+    cli("M7", "sweep", SWEEP + ["--r", "1.5"], "--r: r must lie in [0, 1]"),
     cli("M8", "impact", SIM + ["--impact", "never"], "argument --impact: invalid choice"),
     cli("M13", "method", SWEEP + ["--method", "euler"], "argument --method: invalid choice"),
     cli("M14", "substeps", SWEEP + ["--substeps", "0"], "argument --substeps"),

@@ -9,11 +9,28 @@ from __future__ import annotations
 
 import sys
 
+from rockjax import ParameterError
+
 from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
-from ._common import _first_line, _Parser, CLIError, enable_compile_cache, EXIT_USAGE
+from ._common import (
+    _first_line,
+    _Parser,
+    CLIError,
+    COMMON_FLAGS,
+    enable_compile_cache,
+    EXIT_USAGE,
+    parameter_message,
+)
 
 #: the sub-commands, in the order `rockjax --help` lists them
 COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
+
+
+def flags(command):
+    """The library parameter -> option map of a command (its module's `FLAGS`, else the
+    options most commands share)."""
+    module = next((c for c in COMMANDS if c.__name__.rsplit(".", 1)[-1] == command), None)
+    return getattr(module, "FLAGS", COMMON_FLAGS)
 
 
 def _version():
@@ -65,12 +82,21 @@ def main(argv=None, *, compile_cache=None):
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_USAGE
+    import rockjax
+
+    # float64 and every core, before any computation (a no-op for the device count when
+    # the caller's JAX has already run, e.g. main([...]) in a notebook)
+    rockjax.configure()
     if compile_cache is None:
         compile_cache = argv is None
     if compile_cache:  # before any computation: a later run reads the programs back
         enable_compile_cache(disabled=not args.compile_cache)
     try:
         return args.func(args)
+    except ParameterError as e:  # the library names the parameter; the command its option
+        print(f"rockjax {args.command}: error: {parameter_message(e, flags(args.command))}",
+              file=sys.stderr)
+        return EXIT_USAGE
     except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
         print(f"rockjax {args.command}: error: {_first_line(e)}", file=sys.stderr)
         return EXIT_USAGE

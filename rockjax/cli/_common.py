@@ -6,11 +6,11 @@ from __future__ import annotations
 import argparse
 import math
 import pathlib
-import re
 
 import numpy as np
 
 import rockjax
+from rockjax._checks import check_r
 from rockjax._fidelity import sdof_lift_off_message
 
 EXIT_USAGE = 2
@@ -68,63 +68,38 @@ def _first_line(e):
 
 
 # ------------------------------------------------------------------ argument converters
-def _positive_float(name):
+def converter(option, kind=float, test=None, must=None):
+    """The one factory of argparse types: the text as `kind` (float or int), which must pass
+    `test` (else "OPTION must MUST, got X": the integer read, or the text of a number)."""
+    noun = "an integer" if kind is int else "a number"
+
     def conv(text):
         try:
-            x = float(text)
+            x = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not math.isfinite(x) or x <= 0:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive number, got {text!r}")
+            raise argparse.ArgumentTypeError(f"{option} must be {noun}, got {text!r}") from None
+        if test is not None and not test(x):
+            got = x if kind is int else repr(text)
+            raise argparse.ArgumentTypeError(f"{option} must {must}, got {got}")
         return x
 
     return conv
 
 
-def _finite_float(name):
-    def conv(text):
-        try:
-            x = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not math.isfinite(x):
-            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
-        return x
-
-    return conv
+def _positive_float(option):
+    return converter(option, float, lambda x: math.isfinite(x) and x > 0, "be a positive number")
 
 
-def _positive_int(name):
-    def conv(text):
-        try:
-            n = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
-        if n < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive integer, got {n}")
-        return n
-
-    return conv
+def _finite_float(option):
+    return converter(option, float, math.isfinite, "be finite")
 
 
-def _points(text):
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--points must be an integer, got {text!r}") from None
-    if n < 2:
-        raise argparse.ArgumentTypeError(f"--points must be at least 2, got {n}")
-    return n
+def _positive_int(option):
+    return converter(option, int, lambda n: n >= 1, "be a positive integer")
 
 
-def _starts(text):
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--starts must be an integer, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"--starts must be at least 1, got {n}")
-    return n
+_points = converter("--points", int, lambda n: n >= 2, "be at least 2")
+_starts = converter("--starts", int, lambda n: n >= 1, "be at least 1")
 
 
 def _scale_range(text, parts):
@@ -194,8 +169,9 @@ def _load_structure(path):
 
 
 def _check_r(r):
-    if r is not None and not 0.0 <= r <= 1.0:
-        raise CLIError(f"--r must lie in [0, 1], got {r}")
+    """--r in [0, 1] (`rockjax._checks.check_r`, the library's own check; its
+    `ParameterError` names the parameter, which `main` reports as --r)."""
+    check_r(r)
 
 
 def _check_t1_steps(t1, dt, what):
@@ -258,12 +234,14 @@ def fidelity_note(args, structure, forced, peak_u):
     if not getattr(args, "fidelity_warning", True):
         return None
     model = rockjax.get_model(args.model, args.impact)
-    msg = sdof_lift_off_message(model, structure, forced, peak_u, model_name=args.model)
-    if msg is None:
-        return None
-    return (msg.replace('use model="rigid_body"', "use --model rigid_body")
-            .replace('or "two_spring_2dof"', "or two_spring_2dof")
-            .replace("silence with fidelity_warning=False", "silence with --no-fidelity-warning"))
+    return sdof_lift_off_message(model, structure, forced, peak_u, model_name=args.model,
+                                 advice=_FIDELITY_ADVICE)
+
+
+#: the fidelity warning's advice in CLI syntax
+_FIDELITY_ADVICE = ("use --model rigid_body (the body's own one-DOF equation, about as fast) "
+                    "or two_spring_2dof. See docs/models.md; silence with "
+                    "--no-fidelity-warning")
 
 
 #: the models whose impacts are their landings, not the SDOF impact rule
@@ -313,37 +291,32 @@ def record_line(info):
     )
 
 
-# ------------------------------------------------------- API messages in CLI syntax
-#: keyword arguments of the API named in messages, and the CLI option that sets each
-_API_OPTIONS = {"units": "--units", "dt": "--record-dt", "scale": "--scale", "t1": "--t1",
-                "tail": "--tail"}
-_API_KEYWORD_RE = re.compile(
-    r"(?<![\w.\-])(units|dt|scale|t1|tail)=(?:'([^']*)'|\"([^\"]*)\"|(<[^>]*>|[^\s,;)'\"]+))?"
-)
-#: whole phrases about read_record's format= (the CLI detects the layout)
-_FORMAT_PHRASES = (
-    ("pass format='at2', 'two_column' or 'one_column'",
-     "a record file is PEER AT2, two columns (t, a) or one column (a, with --record-dt)"),
-    ("pass format= if this is not an AT2 file", "a file named .AT2 is read as PEER AT2"),
-)
+# ------------------------------------------------------- API errors in CLI syntax
+#: the library parameters that most commands set, and the option that sets each; a command
+#: adds its own (`FLAGS` in its module)
+COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t1",
+                "method": "--method", "substeps": "--substeps"}
+#: the options of a ground-motion record (read_record's and GroundMotion's parameters)
+RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale"}
 
 
-def cli_message(text):
-    """A message of the Python API in command-line syntax: `units='g'` -> `--units g`,
-    `dt=0.02` / `dt=<time step in s>` / `dt=` -> `--record-dt ...`, likewise `scale=`,
-    `t1=`, `tail=`; "was passed" -> "was given"; read_record's `format=` advice becomes a
-    description of the layouts the CLI detects. Other text is unchanged."""
-    text = str(text)
-    for api, cli in _FORMAT_PHRASES:
-        text = text.replace(api, cli)
+def parameter_message(e, flags):
+    """A `rockjax.ParameterError` in the command's terms: "--flag: message; pass --flag
+    value", `flags` mapping the library's parameter names to the command's options; the
+    message alone (no advice in Python syntax) when no option sets that parameter."""
+    message = e.message.splitlines()[0] if e.message else type(e).__name__
+    flag = flags.get(e.param)
+    if flag is None:
+        return message
+    return f"{flag}: {message}{e.advice_for(flag)}"
 
-    def option(m):
-        value = next((g for g in m.groups()[1:] if g), None)
-        flag = _API_OPTIONS[m.group(1)]
-        return f"{flag} {value}" if value else flag
 
-    text = _API_KEYWORD_RE.sub(option, text)
-    return text.replace(" was passed", " was given")
+def error_text(e, flags):
+    """One line for an exception: `parameter_message` for a `ParameterError`, else its
+    first line."""
+    if isinstance(e, rockjax.ParameterError):
+        return parameter_message(e, flags)
+    return _first_line(e)
 
 
 #: the units of acceleration a record may be in (`rockjax.UNITS`), for --units' help

@@ -25,9 +25,14 @@ from ._common import (
     _check_png,
     _check_r,
     CLIError,
+    converter,
     model_info,
     model_line,
 )
+
+#: the library parameters that the options of `rockjax fragility` set (errors name them)
+FLAGS = {**sweep.FLAGS, "im": "--im", "limit": "--limit", "n_bootstrap": "--bootstrap",
+         "confidence": "--confidence", "seed": "--seed"}
 
 #: standard normal quantiles of the probabilities the text report gives the IM at
 _Z = {0.1: -1.2815515655446004, 0.5: 0.0, 0.9: 1.2815515655446004}
@@ -68,7 +73,7 @@ def _im(text):
     try:
         parse_im(text)
     except ValueError as e:
-        raise argparse.ArgumentTypeError(f"--{e}") from None
+        raise argparse.ArgumentTypeError(str(e)) from None
     return text
 
 
@@ -83,24 +88,8 @@ def _limit(text):
     return text
 
 
-def _bootstrap(text):
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--bootstrap must be an integer, got {text!r}") from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"--bootstrap must be >= 0, got {n}")
-    return n
-
-
-def _confidence(text):
-    try:
-        c = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--confidence must be a number, got {text!r}") from None
-    if not 0 < c < 1:
-        raise argparse.ArgumentTypeError(f"--confidence must lie in (0, 1), got {text!r}")
-    return c
+_bootstrap = converter("--bootstrap", int, lambda n: n >= 0, "be >= 0")
+_confidence = converter("--confidence", float, lambda c: 0 < c < 1, "lie in (0, 1)")
 
 
 def _add_fit_arguments(w):
@@ -173,13 +162,10 @@ def _fit(args, result):
     """`rockjax.fragility` with its warnings collected; errors in CLI syntax."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        try:
-            fit = rockjax.fragility(result, im=args.im, limit=args.limit,
-                                    n_bootstrap=args.bootstrap, confidence=args.confidence,
-                                    seed=args.seed)
-        except ValueError as e:
-            raise CLIError(str(e).replace("the scales", "--scales")) from None
-    return fit, [str(w.message).replace("add scales", "add --scales") for w in caught]
+        fit = rockjax.fragility(result, im=args.im, limit=args.limit,
+                                n_bootstrap=args.bootstrap, confidence=args.confidence,
+                                seed=args.seed)  # a ParameterError names its option in main
+    return fit, [str(w.message) for w in caught]
 
 
 def _plot(args, sw, fit):

@@ -25,6 +25,9 @@ CSV_COLUMNS = {"u": "m", "simplified": "N", "exact": "N", "numerical": "N", "the
                "uplift": "m"}
 
 
+#: the library parameters that the options of `rockjax pushover` set (errors name them)
+FLAGS = {"u": "--umax", "structure": "--structure"}
+
 def add_parser(subparsers):
     q = subparsers.add_parser(
         "pushover",

@@ -17,22 +17,24 @@ from ._common import (
     _check_r,
     _check_t1_steps,
     _finite_float,
-    _first_line,
     _load_structure,
     _positive_float,
     _write_csv,
     add_model_arguments,
-    cli_message,
     CLIError,
+    COMMON_FLAGS,
     fidelity_note,
     model_info,
     model_line,
+    RECORD_FLAGS,
     record_info,
     record_line,
     record_units,
     RECORD_UNITS_METAVAR,
 )
 
+#: the library parameters that the options of `rockjax simulate` set (errors name the option)
+FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "u0": "--u0", "v0": "--v0"}
 #: the --out CSV columns and their units (the header reads t_s,u_m,v_m_s,theta_rad,uplift_m)
 CSV_COLUMNS = {"t": "s", "u": "m", "v": "m_s", "theta": "rad", "uplift": "m"}
 #: output step [s] of a free-vibration run (a ground-motion run uses the record's step)
@@ -104,10 +106,7 @@ def _build_excitation(args, s):
             )
         excitation = rockjax.FreeVibration(args.u0, args.v0)
         return excitation, None, {"type": "free_vibration", "u0": args.u0, "v0": args.v0}
-    try:
-        rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
-    except ValueError as e:
-        raise CLIError(cli_message(_first_line(e))) from None
+    rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
     gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
     return gm, gm, {"type": "ground_motion", **record_info(rec, args.scale)}
 

@@ -20,9 +20,14 @@ from ._common import (
     _scale_range,
     add_model_arguments,
     CLIError,
+    COMMON_FLAGS,
     model_info,
     model_line,
 )
+
+#: the library parameters that the options of `rockjax spectrum` set (errors name them)
+FLAGS = {**COMMON_FLAGS, "periods": "--periods", "rtol": "--rtol", "kind": "--pulse",
+         "structure": "--structure"}
 
 #: --pulse names and the `rockjax.pulses` kinds
 PULSES = {"rectangular": "rectangular", "sine": "one_sine", "cosine": "one_cosine"}

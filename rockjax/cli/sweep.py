@@ -45,16 +45,23 @@ from ._common import (
     _positive_int,
     _scales,
     add_model_arguments,
-    cli_message,
     CLIError,
+    COMMON_FLAGS,
+    converter,
+    error_text,
     fidelity_note,
     model_info,
     model_line,
+    RECORD_FLAGS,
     record_info,
     record_units,
     RECORD_UNITS_METAVAR,
     split_record_units,
 )
+
+#: the library parameters that the options of `rockjax sweep` set (errors name the option)
+FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scales",
+         "tail": "--tail", "structure": "--structure", "records": "--record"}
 
 #: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
 RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
@@ -92,14 +99,7 @@ class _InOrder(argparse.Action):
         namespace.inputs = [*(namespace.inputs or []), (self.dest, values)]
 
 
-def _tail(text):
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--tail must be a number, got {text!r}") from None
-    if not (math.isfinite(x) and x >= 0):
-        raise argparse.ArgumentTypeError(f"--tail must be >= 0 and finite, got {text!r}")
-    return x
+_tail = converter("--tail", float, lambda x: math.isfinite(x) and x >= 0, "be >= 0 and finite")
 
 
 def _add_input_arguments(w):
@@ -321,12 +321,13 @@ def _read_records(specs, default_units, record_dt):
             records.append(rockjax.read_record(spec.path, units=units, dt=dt))
         except (ValueError, OSError) as e:
             hint = ""
-            if spec.folder is not None and "units" in str(e):
+            if spec.folder is not None and getattr(e, "param", None) == "units":
                 hint = (
                     f" (a file of --record {spec.folder}: give its units with --record "
                     f"{spec.path}:g or :m/s2)"
                 )
-            raise CLIError(f"--record: {cli_message(_first_line(e))}{hint}") from None
+            where = "" if isinstance(e, rockjax.ParameterError) else "--record: "
+            raise CLIError(f"{where}{error_text(e, FLAGS)}{hint}") from None
     return records
 
 
@@ -340,7 +341,7 @@ def _sweep_records(args):
     try:
         common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
     except ValueError as e:
-        raise CLIError(f"--record: {cli_message(_first_line(e))}") from None
+        raise CLIError(f"--record: {_first_line(e)}") from None
     return records, labels, skipped
 
 

@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from . import _units
-from ._units import G_STANDARD
 from ._errors import ParameterError, Placeholder
+from ._units import G_STANDARD
 
 __all__ = ["G_STANDARD", "Record", "common_time_step", "read_record"]
 

@@ -350,7 +350,8 @@ def test_header_units_win_and_a_contradicting_argument_names_both(tmp_path):
     size in another spelling (cm/s2 for gal) agree, and the header's name is kept."""
     path = write(tmp_path, "gal.dat", "Time[s] Accel[gal]\n0 1.0\n0.01 2.0\n0.02 -3.0\n")
     with pytest.raises(ValueError, match=r"gal\.dat: the file states units gal \('Accel\[gal\]' "
-                                         r"in its header\) but m/s2 was given; omit units= or pass units='gal'"):
+                                         r"in its header\) but m/s2 was given; omit units= or "
+                                         r"pass units='gal'"):
         read_record(path, units="m/s2")
     rec = read_record(path, units="cm/s^2")
     assert rec.units_in_file == "gal" and rec.units_source == "file header"
@@ -360,7 +361,8 @@ def test_header_units_win_and_a_contradicting_argument_names_both(tmp_path):
     rec = read_record(at2)  # an AT2 header's cm/s2 beats PEER's g default
     assert rec.units_in_file == "cm/s2"
     np.testing.assert_allclose(rec.accel, [1.0, -0.5, 0.0])
-    with pytest.raises(ValueError, match=r"states units cm/s2 .* but g was given; omit units= or pass units='cm/s2'"):
+    with pytest.raises(ValueError, match=r"states units cm/s2 .* but g was given; omit "
+                                         r"units= or pass units='cm/s2'"):
         read_record(at2, units="g")
 
 

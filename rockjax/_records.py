@@ -244,8 +244,7 @@ def _resolve_units(
     if default is not None:
         return default, "AT2 default"
     raise ParameterError(
-        f"{source}: the units of the acceleration are not stated in the file (units of "
-        f"acceleration: {', '.join(RECORD_UNITS)})",
+        f"{source}: the units of the acceleration are not stated in the file",
         param="units", choices=("g", "m/s2"),
     )
 

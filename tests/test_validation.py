@@ -758,7 +758,7 @@ CLI = [
     cli("C3", "simulate-record", ["simulate", "--record", "good.txt", "--t1", "1e300"],
         "shorten --t1"),
     cli("C3", "sweep", SWEEP + ["--tail", "1e300"], "shorten --tail"),
-    cli("C4", "units", SWEEP + ["--units", "cm"], "argument --units: invalid choice"),
+    cli("C4", "units", SWEEP + ["--units", "cm"], "argument --units: 'cm' is a unit of length, not of acceleration"),
     cli("C5", "neither", ["simulate"], "give --u0 M (free vibration) or --record FILE"),
     cli("C5", "both", ["simulate", "--u0", "0.1", "--record", "good.txt"], "not both"),
     cli("C6", "pushover", ["pushover", "--plot", "x.txt"], "--plot must end in .png"),

@@ -196,17 +196,18 @@ def test_hold_and_clock_offset_set_the_start_and_fixed_release():
     # at the first sample (of a hold: a noisy sample, anywhere in time)
     trace, truth = _load("synthetic_decay_noisy")
     s = rockjax.mcmanus_column()
-    setup = identification._fit._setup
-    kw = dict(model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
-              horizons=(0.25, 0.5, 1.0), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
-              progress=False)
+    setup = identification._problem.setup
+    kw = identification._problem.Settings(
+        model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
+        horizons=(0.25, 0.5, 1.0), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
+        progress=False)
     shifted = identification.DecayTrace(trace.t + 2.5, trace.u, trace.uplift)
-    pb = setup(shifted, s, ("k_f", "r"), **kw)
+    pb = setup(shifted, s, ("k_f", "r"), kw)
     assert pb.values0["t0"] == 2.5 and pb.values0["u0"] == trace.u[0]
     rng = np.random.default_rng(0)
     t = np.concatenate([np.arange(200) / 200, 1.0 + trace.t])
     u = np.concatenate([0.1 + rng.normal(0, 5e-4, 200), trace.u])
-    pb = setup(identification.DecayTrace(t, u), s, ("k_f", "r"), **kw)
+    pb = setup(identification.DecayTrace(t, u), s, ("k_f", "r"), kw)
     assert abs(pb.values0["t0"] - 1.0) < 0.015 and abs(pb.values0["u0"] - 0.1) < 3e-4
     # the horizons count from the release: the hold is in every one of them
     assert pb.within(0.25)[:200].all() and not pb.within(0.25)[200 + 420:].any()
@@ -225,8 +226,10 @@ def test_amplitude_beyond_overturning_is_refused_with_a_units_hint():
     # spikes beyond u_overturn (outliers, which the fit leaves out) are not a units problem
     spiked = trace.u.copy()
     spiked[[400, 900]] = 0.5
-    pb = identification._fit._setup(
+    pb = identification._problem.setup(
         identification.DecayTrace(trace.t, spiked), rockjax.mcmanus_column(), ("k_f", "r"),
-        model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
-        horizons=(1.0,), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11, progress=False)
+        identification._problem.Settings(
+            model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
+            horizons=(1.0,), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
+            progress=False))
     assert pb.scale == 0.5

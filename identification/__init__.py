@@ -25,23 +25,24 @@ from ._models import (
 from ._optim import levenberg_marquardt as levenberg_marquardt
 from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
 from ._problem import PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
+from ._release import detect_release as detect_release, Release as Release
 from ._result import (
     FitResult as FitResult,
     IdentifiabilityWarning as IdentifiabilityWarning,
     LackOfFitWarning as LackOfFitWarning,
     OutlierWarning as OutlierWarning,
 )
+from ._synthetic import (
+    synthetic_trace_path as synthetic_trace_path,
+    synthetic_truth as synthetic_truth,
+)
 from ._trace import (
     CHANNELS as CHANNELS,
     DecayTrace as DecayTrace,
-    detect_release as detect_release,
     DroppedRowsWarning as DroppedRowsWarning,
     LENGTH_UNITS as LENGTH_UNITS,
     read_trace as read_trace,
-    Release as Release,
-    synthetic_trace_path as synthetic_trace_path,
     SYNTHETIC_TRACES as SYNTHETIC_TRACES,
-    synthetic_truth as synthetic_truth,
     TIME_UNITS as TIME_UNITS,
     TraceError as TraceError,
 )

@@ -19,7 +19,8 @@ import rockjax
 
 from . import _models
 from ._models import FitModel
-from ._trace import DecayTrace, detect_release, Release, TraceError
+from ._release import detect_release, Release
+from ._trace import DecayTrace, TraceError
 
 PARAM_NAMES = ("k_f", "r", "u0", "t0", "c_f")
 """The parameters `fit_decay` can fit (`DEFAULT_PARAMS`, less those that do not act in the

@@ -11,7 +11,7 @@ import pytest
 
 import identification
 import rockjax
-from identification._trace import (
+from identification import (
     DecayTrace,
     read_trace,
     synthetic_trace_path,

@@ -233,3 +233,23 @@ def test_amplitude_beyond_overturning_is_refused_with_a_units_hint():
             horizons=(1.0,), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
             progress=False))
     assert pb.scale == 0.5
+
+
+@pytest.mark.slow
+def test_an_optimistix_solver_gives_the_default_fit():
+    """optimizer= takes an optimistix least-squares solver (each stage then runs
+    `optimistix.least_squares`): on the noisy trace it lands on the default LM's optimum
+    (its compile costs minutes: slow)."""
+    import optimistix
+
+    trace, _ = _load("synthetic_decay_noisy")
+    kw = dict(params=("k_f", "r", "u0"), initial={"k_f": 1.6e6, "r": 0.7}, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = fit_decay(trace, rockjax.mcmanus_column(), **kw)
+        fit = fit_decay(trace, rockjax.mcmanus_column(), **kw,
+                        optimizer=optimistix.LevenbergMarquardt(rtol=1e-6, atol=1e-9))
+    assert fit.converged and ref.converged
+    for p in ("k_f", "r", "u0"):
+        assert abs(fit.values[p] - ref.values[p]) < 0.01 * ref.stderr[p], p
+    assert fit.loss == pytest.approx(ref.loss, rel=1e-6)

@@ -7,7 +7,9 @@ motion after the release (k_f held), then more, then all of it, each stage start
 the best point of the last (`run_stages`); then, if the fit converged, refits without its
 outliers (`identification._outliers`). `best_start` picks the best start and its residuals
 and Jacobian on the whole trace. The default optimiser is the one Levenberg-Marquardt
-instance `DEFAULT_OPTIMIZER` (its compiled code is reused by every fit).
+instance `DEFAULT_OPTIMIZER` (its compiled code is reused by every fit). An optimistix
+least-squares solver runs each stage with `optimistix.least_squares` instead
+(`solve_stage`): the same optimum, at a higher cost (docs/identification.md).
 """
 
 from __future__ import annotations

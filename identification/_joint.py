@@ -239,6 +239,14 @@ class _JointModel(eqx.Module):
         J = jnp.einsum("inp,ipq->inq", J, self.scatter)
         return r.reshape(-1), J.reshape(-1, J.shape[-1])
 
+    def residuals(self, z, mask):
+        """The residuals of every trace (flat, trace after trace; `mask` flat, M * n): what
+        an optimistix solver (`_stages.solve_stage`) differentiates itself."""
+        m = self.index.shape[0]
+        r = jax.vmap(lambda mod, zl, mk: mod.residuals(zl, mk))(
+            self.stacked, z[self.index], mask.reshape(m, -1))
+        return r.reshape(-1)
+
     def respond(self, z):
         """The fitted responses of every trace (a Response with a leading trace axis)."""
         return jax.vmap(lambda mod, zl: mod.respond(zl))(self.stacked, z[self.index])

@@ -1,8 +1,9 @@
 r"""The models a decay trace can be fitted with, and the parameters that act in each.
 
 Any model of rockjax's fidelity ladder (`rockjax.MODELS`: the SDOF laws `"housner"`,
-`"simplified"`, `"exact"`, `"smooth"`, the 2-DOF body `"two_spring_2dof"`, and any model
-registered there later), or a model instance (`rockjax.TwoSpring2DOF(damping=...,
+`"simplified"`, `"exact"`, `"smooth"`, the rigid body `"rigid_body"`, the 2-DOF body
+`"two_spring_2dof"`, and any model registered there later whose class has a `FitSpec`), or
+a model instance (`rockjax.TwoSpring2DOF(damping=...,
 contact=...)`). Which of the fit's parameters act in a model is declared once per model
 class, in a `FitSpec` (`FIT_SPECS`, `register_fit_spec`), so that a parameter the trace
 cannot inform is refused rather than fitted to a meaningless value with a broken standard

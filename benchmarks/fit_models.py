@@ -2,6 +2,7 @@
 and whether the lack-of-fit check of `identification.fit_decay` fires.
 
     python benchmarks/fit_models.py [--traces NAME ...] [--models NAME ...] [--json FILE]
+                                    [--optimizer lm|optimistix]
 
 The traces (all SYNTHETIC: rockjax simulations plus Gaussian noise, released at rest from
 u0 = 0.1 m at t = 0, Table 1 geometry and masses):
@@ -58,6 +59,13 @@ MODELS = (
     ("2dof impact", "two_spring_2dof", "impact"),
     ("2dof continuous", "two_spring_2dof", "continuous"),
 )
+
+
+def optimistix_lm():
+    """The optimistix solver compared with fit_decay's own Levenberg-Marquardt."""
+    import optimistix
+
+    return optimistix.LevenbergMarquardt(rtol=1e-6, atol=1e-9)
 
 
 def fit_one(trace, truth, model, contact, **kwargs):
@@ -129,14 +137,18 @@ def main(argv=None):
     labels = [m[0] for m in MODELS]
     ap.add_argument("--models", nargs="+", choices=labels, default=labels)
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
+    ap.add_argument("--optimizer", choices=("lm", "optimistix"), default="lm",
+                    help="fit_decay's default Levenberg-Marquardt (lm), or optimistix."
+                         "LevenbergMarquardt(1e-6, 1e-9) run by optimistix.least_squares")
     args = ap.parse_args(argv)
+    kwargs = {} if args.optimizer == "lm" else {"optimizer": optimistix_lm()}
     models = [m for m in MODELS if m[0] in args.models and m[1] in rockjax.MODELS]
     rows, truths = [], {}
     for name in args.traces:
         trace, truth = make_trace(name)
         truths[name] = truth
         for label, model, contact in models:
-            fit, wall, _ = fit_one(trace, truth, model, contact)
+            fit, wall, _ = fit_one(trace, truth, model, contact, **kwargs)
             rows.append(row(name, truth, label, fit, wall))
             print(f"{name:16s} {label:16s} k_f {rows[-1]['k_f']:>16s} r {rows[-1]['r']:>14s} "
                   f"c_f {rows[-1]['c_f']:>10s} rms {rows[-1]['rms_mm']:.2f} mm fires "

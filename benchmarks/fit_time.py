@@ -2,6 +2,7 @@
 (8 s at 200 Hz, 1601 samples).
 
     python benchmarks/fit_time.py [--starts N] [--repeats N] [--json] [--no-cli] [--no-joint]
+                                  [--optimizer lm|optimistix]
 
 Fits (k_f, r, and the nuisance u0) of the Table 1 column to `synthetic_decay_noisy`
 (true k_f = 800 kN/m, r = 0.85) from 2x away: k_f = 1.6 MN/m (twice the truth) and r =
@@ -68,9 +69,12 @@ class Events:
         jax.monitoring.unregister_event_duration_listener(self)
 
 
+OPTIMIZER = {}  # fit_decay's optimizer= (--optimizer optimistix), none by default
+
+
 def timed_fit(trace, structure, initial, starts):
     """(wall time [s], the fit, its compile events) of one fit_decay."""
-    kwargs = {} if starts is None else {"starts": starts}
+    kwargs = {**OPTIMIZER, **({} if starts is None else {"starts": starts})}
     with warnings.catch_warnings(record=True), Events() as ev:
         warnings.simplefilter("always", identification.IdentifiabilityWarning)
         t0 = time.perf_counter()
@@ -153,7 +157,16 @@ def main(argv=None):
     ap.add_argument("--json", action="store_true", help="also print the results as JSON")
     ap.add_argument("--no-cli", action="store_true", help="skip the `rockjax fit` timings")
     ap.add_argument("--no-joint", action="store_true", help="skip the joint fit")
+    ap.add_argument("--optimizer", choices=("lm", "optimistix"), default="lm",
+                    help="fit_decay's default Levenberg-Marquardt (lm), or "
+                         "optimistix.LevenbergMarquardt(1e-6, 1e-9) (the CLI: always lm)")
     args = ap.parse_args(argv)
+    if args.optimizer == "optimistix":
+        import optimistix
+
+        OPTIMIZER["optimizer"] = optimistix.LevenbergMarquardt(rtol=1e-6, atol=1e-9)
+    else:
+        OPTIMIZER.clear()
 
     path = identification.synthetic_trace_path(NAME)
     trace = identification.read_trace(path)

@@ -10,35 +10,39 @@ synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits sever
 of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
 """
 
-from ._fit import (
-    FitResult as FitResult,
-    IdentifiabilityWarning as IdentifiabilityWarning,
-    LackOfFitWarning as LackOfFitWarning,
-    OutlierWarning as OutlierWarning,
-    PARAM_NAMES as PARAM_NAMES,
-    UNITS as UNITS,
-)
-from ._joint import fit_decay as fit_decay, JointFitResult as JointFitResult
+from ._fit import fit_decay as fit_decay
+from ._joint import JointFitResult as JointFitResult
 from ._lack import residual_statistics as residual_statistics
 from ._models import (
     CONTACTS as CONTACTS,
     DEFAULT_PARAMS as DEFAULT_PARAMS,
     default_params as default_params,
     FitModel as FitModel,
+    FitSpec as FitSpec,
+    register_fit_spec as register_fit_spec,
     resolve_model as resolve_model,
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
+from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
+from ._problem import PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
+from ._release import detect_release as detect_release, Release as Release
+from ._result import (
+    FitResult as FitResult,
+    IdentifiabilityWarning as IdentifiabilityWarning,
+    LackOfFitWarning as LackOfFitWarning,
+    OutlierWarning as OutlierWarning,
+)
+from ._synthetic import (
+    synthetic_trace_path as synthetic_trace_path,
+    synthetic_truth as synthetic_truth,
+)
 from ._trace import (
     CHANNELS as CHANNELS,
     DecayTrace as DecayTrace,
-    detect_release as detect_release,
     DroppedRowsWarning as DroppedRowsWarning,
     LENGTH_UNITS as LENGTH_UNITS,
     read_trace as read_trace,
-    Release as Release,
-    synthetic_trace_path as synthetic_trace_path,
     SYNTHETIC_TRACES as SYNTHETIC_TRACES,
-    synthetic_truth as synthetic_truth,
     TIME_UNITS as TIME_UNITS,
     TraceError as TraceError,
 )

@@ -2,16 +2,16 @@ r"""Joint fit of several decay traces of one structure: shared $k_f$, $r$ (or $c
 a release $u_0$, $t_0$ of each trace.
 
 `fit_decay([trace_1, trace_2, ...], structure)` lands here. Each trace is checked and its
-release found as for a single fit (`_fit._setup`); the traces are padded to the length of
+release found as for a single fit (`_problem.setup`); the traces are padded to the length of
 the longest (padded samples are masked out of the residuals: they never count), and the
 model of every trace is evaluated at once, `jax.vmap` over the traces, with the single
-fit's residuals and forward-mode Jacobian (`_fit._Model`). The unknowns are
+fit's residuals and forward-mode Jacobian (`_residuals.TraceModel`). The unknowns are
 
 $$z = (z_{shared},\ u_{0,1}, t_{0,1},\ u_{0,2}, t_{0,2},\ \dots)$$
 
 in the single fit's coordinates; each trace's Jacobian (residuals x its own parameters) is
 scattered into the joint one. The optimiser, the growing horizons, the multi-start and the
-convergence test are those of the single fit (`_fit._run_stages`); the compiled step
+convergence test are those of the single fit (`_stages.run_stages`); the compiled step
 depends only on the number of traces, the padded length and the static settings, so a
 second joint fit of as many traces of that length reuses it.
 
@@ -23,8 +23,6 @@ pass (fit the traces one by one to find spikes). The lack-of-fit check is done p
 from __future__ import annotations
 
 import dataclasses
-import functools
-import inspect
 import math
 import warnings
 
@@ -33,7 +31,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import _fit, _lack, _models
+from . import _lack, _models
+from ._problem import as_trace, check_structure, PARAM_NAMES, Settings, setup, UNITS
+from ._residuals import compiled, response_structure, TraceModel
+from ._result import LackOfFitWarning
+from ._stages import best_start, optimizer_of, run_stages
+from ._transforms import Transform
 
 SHARED = ("k_f", "r", "c_f")
 """The parameters a joint fit shares between the traces (of one structure)."""
@@ -86,7 +89,7 @@ class JointFitResult:
         values, `traces` (the per-trace dicts), the correlation of every fitted parameter,
         loss, converged, warnings, the model fitted (`fitted_model`), notes and `units`."""
         return {
-            "units": {**_fit.UNITS, "rms": "m", "sigma": "m", "loss": "-"},
+            "units": {**UNITS, "rms": "m", "sigma": "m", "loss": "-"},
             "joint": True,
             "values": dict(self.values),
             "stderr": dict(self.stderr),
@@ -117,7 +120,7 @@ def _check_traces(traces) -> list:
     out = []
     for i, tr in enumerate(traces):
         try:
-            out.append(_fit._as_trace(tr))
+            out.append(as_trace(tr))
         except ValueError as e:
             raise ValueError(f"trace[{i}]: {e}") from None
     return out
@@ -130,10 +133,10 @@ def _check_structures(structure, n: int):
     if len(structure) != n:
         raise ValueError(f"structure: {len(structure)} structures for {n} traces; a joint "
                          "fit is of one structure (give it once)")
-    first = _fit._check_structure(structure[0])
+    first = check_structure(structure[0])
     leaves0 = jax.tree.leaves(first)
     for i, s in enumerate(structure[1:], 1):
-        leaves = jax.tree.leaves(_fit._check_structure(s))
+        leaves = jax.tree.leaves(check_structure(s))
         if len(leaves) != len(leaves0) or not all(
                 np.array_equal(np.asarray(a), np.asarray(b)) for a, b in zip(leaves, leaves0)):
             raise ValueError(
@@ -144,10 +147,10 @@ def _check_structures(structure, n: int):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class _JointProblem:
-    """The traces' problems (`_fit._Problem`), padded to `n` samples, as one problem for
-    `_fit._run_stages` (the attributes it reads)."""
+    """The traces' problems (`_problem.Problem`), padded to `n` samples, as one problem for
+    `_stages.run_stages` (the attributes it reads)."""
 
-    problems: tuple  # one _fit._Problem per trace (its own samples)
+    problems: tuple  # one Problem per trace (its own samples)
     n: int  # padded length
     params: tuple  # joint names: shared, then u0[i], t0[i]
     local: tuple  # the parameters of one trace (order of its z)
@@ -175,8 +178,8 @@ class _JointProblem:
         return out.reshape(-1)
 
 
-def _joint_problem(traces, structure, params, kwargs) -> _JointProblem:
-    problems = tuple(_fit._setup(tr, structure, params, **kwargs) for tr in traces)
+def _joint_problem(traces, structure, params, settings: Settings) -> _JointProblem:
+    problems = tuple(setup(tr, structure, params, settings) for tr in traces)
     for i, pb in enumerate(problems[1:], 1):
         if pb.fits_uplift != problems[0].fits_uplift:
             has = "has" if pb.fits_uplift else "has no"
@@ -209,16 +212,16 @@ def _padded(pb, n: int):
 
 
 class _JointModel(eqx.Module):
-    """The traces' models (`_fit._Model`, array leaves stacked over the traces) and the
+    """The traces' models (`TraceModel`, array leaves stacked over the traces) and the
     map of each trace's parameters into the joint z."""
 
-    stacked: _fit._Model
+    stacked: TraceModel
     index: jax.Array  # (M, P_local) int
     scatter: jax.Array  # (M, P_local, P_joint) one-hot
 
     @classmethod
     def build(cls, jp: _JointProblem) -> _JointModel:
-        models = [_fit._Model.build(_padded(pb, jp.n)) for pb in jp.problems]
+        models = [TraceModel.build(_padded(pb, jp.n)) for pb in jp.problems]
         arrays = [eqx.filter(m, eqx.is_array) for m in models]
         static = eqx.filter(models[0], eqx.is_array, inverse=True)
         stacked = eqx.combine(jax.tree.map(lambda *xs: jnp.stack(xs), *arrays), static)
@@ -236,12 +239,20 @@ class _JointModel(eqx.Module):
         J = jnp.einsum("inp,ipq->inq", J, self.scatter)
         return r.reshape(-1), J.reshape(-1, J.shape[-1])
 
+    def residuals(self, z, mask):
+        """The residuals of every trace (flat, trace after trace; `mask` flat, M * n): what
+        an optimistix solver (`_stages.solve_stage`) differentiates itself."""
+        m = self.index.shape[0]
+        r = jax.vmap(lambda mod, zl, mk: mod.residuals(zl, mk))(
+            self.stacked, z[self.index], mask.reshape(m, -1))
+        return r.reshape(-1)
+
     def respond(self, z):
         """The fitted responses of every trace (a Response with a leading trace axis)."""
         return jax.vmap(lambda mod, zl: mod.respond(zl))(self.stacked, z[self.index])
 
 
-@_fit._compiled(lambda model, z: _fit.response_structure())
+@compiled(lambda model, z: response_structure())
 def _respond_all(model: _JointModel, z):
     return model.respond(z)
 
@@ -249,47 +260,18 @@ def _respond_all(model: _JointModel, z):
 # ------------------------------------------------------------------------ the fit
 
 
-@functools.wraps(_fit.fit_decay)
-def fit_decay(trace, structure=None, params=None, *, optimizer=None, **options):
-    """`_fit.fit_decay` for one trace; for a list (or tuple) of traces of one structure,
-    their joint fit (`JointFitResult`): k_f and r (or c_f) shared, u0 and t0 of each
-    trace. The arguments are those of `_fit.fit_decay` (`initial`, `starts`, ... apply to
-    every trace); a joint fit leaves out the outlier pass."""
-    if not isinstance(trace, (list, tuple)):
-        return _fit.fit_decay(trace, structure, params, optimizer=optimizer, **options)
-    known = inspect.signature(_fit.fit_decay).parameters
-    unknown = sorted(set(options) - set(known))
-    if unknown:
-        raise TypeError(f"fit_decay() got unexpected keyword argument(s) {unknown}")
-    kwargs = {k: p.default for k, p in known.items() if p.kind is p.KEYWORD_ONLY
-              and k != "optimizer"}
-    kwargs.update(options)
-    return fit_joint(trace, structure, params, optimizer=optimizer, kwargs=kwargs)
-
-
-fit_decay.__doc__ = (_fit.fit_decay.__doc__ or "") + """
-    **Joint fit:** `trace` may be a list of traces of one structure (a list of equal
-    structures is accepted too). k_f and r (or c_f) are shared, each trace has its own u0
-    and t0 (fitted or held at its release); the traces are fitted at once (vmapped, padded
-    to the longest with masked samples) and the result is a `JointFitResult`. Traces must
-    all have, or all lack, the uplift channel; outliers are not searched for.
-"""
-
-
-def fit_joint(traces, structure, params, *, optimizer, kwargs) -> JointFitResult:
-    """The joint fit (`fit_decay` with a list of traces; `kwargs`: the rest of its
-    arguments, as `_fit._setup` takes them)."""
+def fit_joint(traces, structure, params, settings: Settings, optimizer=None) -> JointFitResult:
+    """The joint fit (`fit_decay` with a list of traces; `settings`: its keyword
+    arguments)."""
     traces = _check_traces(traces)
     structure = _check_structures(structure, len(traces))
-    jp = _joint_problem(traces, structure, params, kwargs)
-    transforms = [_fit._Transform(pb.params, pb.values0, pb.k_min, pb.scale, pb.t_ref,
-                                  _models.start_offsets(pb.fit_model), pb.k_cap)
-                  for pb in jp.problems]
+    jp = _joint_problem(traces, structure, params, settings)
+    transforms = [Transform.of(pb) for pb in jp.problems]
     model = _JointModel.build(jp)
-    opt = _fit._optimizer(optimizer)
-    run = _fit._run_stages(jp, model, opt, _starting_points(jp, transforms),
-                           lm=optimizer is None, outliers=False)
-    best = _fit._best_start(jp, model, opt, run)
+    opt = optimizer_of(optimizer)
+    run = run_stages(jp, model, opt, _starting_points(jp, transforms), lm=optimizer is None,
+                     outliers=False)
+    best = best_start(jp, model, opt, run)
     responses = _responses(jp, model, best.z)
     unc = _uncertainty(jp, transforms, best)
     return _result(jp, transforms, run, best, responses, unc,
@@ -297,7 +279,7 @@ def fit_joint(traces, structure, params, *, optimizer, kwargs) -> JointFitResult
 
 
 def _starting_points(jp: _JointProblem, transforms) -> np.ndarray:
-    """(starts, P_joint): each trace's starting points (`_Transform.starting_points`)
+    """(starts, P_joint): each trace's starting points (`Transform.starting_points`)
     placed in the joint z (the shared parameters' starts are the same in every trace)."""
     z = np.zeros((jp.starts, len(jp.params)))
     for i, tf in enumerate(transforms):
@@ -388,9 +370,9 @@ def _result(jp, transforms, run, best, responses, unc, sources) -> JointFitResul
         if d["lack_of_fit"]["fires"]:
             messages.append(f"trace[{i}]: {d['lack_of_fit']['message']}")
         if i == 0:
-            shared_vals = {p: vals[p] for p in _fit.PARAM_NAMES if p in SHARED}
+            shared_vals = {p: vals[p] for p in PARAM_NAMES if p in SHARED}
     for m in messages:
-        warnings.warn(m, _fit.LackOfFitWarning, stacklevel=4)  # fit_decay's caller
+        warnings.warn(m, LackOfFitWarning, stacklevel=4)  # fit_decay's caller
     names = tuple(p for p in jp.params if p in SHARED)
     converged = (bool(run.converged[best.index]) and math.isfinite(best.loss)
                  and best.loss < 1e5)

@@ -1,18 +1,20 @@
 r"""The models a decay trace can be fitted with, and the parameters that act in each.
 
 Any model of rockjax's fidelity ladder (`rockjax.MODELS`: the SDOF laws `"housner"`,
-`"simplified"`, `"exact"`, `"smooth"`, the 2-DOF body `"two_spring_2dof"`, and any model
-registered there later), or a model instance (`rockjax.TwoSpring2DOF(damping=...,
-contact=...)`). Which of the fit's parameters act in a model is read off the model itself,
-so that a parameter the trace cannot inform is refused rather than fitted to a meaningless
-value with a broken standard error:
+`"simplified"`, `"exact"`, `"smooth"`, the rigid body `"rigid_body"`, the 2-DOF body
+`"two_spring_2dof"`, and any model registered there later whose class has a `FitSpec`), or
+a model instance (`rockjax.TwoSpring2DOF(damping=...,
+contact=...)`). Which of the fit's parameters act in a model is declared once per model
+class, in a `FitSpec` (`FIT_SPECS`, `register_fit_spec`), so that a parameter the trace
+cannot inform is refused rather than fitted to a meaningless value with a broken standard
+error:
 
-- `k_f` acts unless the model is a rigid interface (its `rigid` attribute, e.g. `housner`:
-  the limit $k_f \to \infty$);
-- `r` acts unless the model's `contact` is `"continuous"` (the 2-DOF body whose springs and
-  dashpots carry the impacts: no restitution coefficient is used);
-- `c_f`, the coefficient [N s/m] of each compression-only dashpot, acts in a model with a
-  `damping` field (the 2-DOF body);
+- `k_f` acts unless the model is a rigid interface (the SDOF with a law whose class
+  variable `rigid` is True, e.g. `housner`: the limit $k_f \to \infty$);
+- `r` acts unless the model has a contact law set to `"continuous"` (the 2-DOF body whose
+  springs and dashpots carry the impacts: no restitution coefficient is used);
+- `c_f`, the coefficient [N s/m] of each compression-only dashpot, acts in a model whose
+  spec declares dashpots (the 2-DOF body, its field `damping`);
 - `u0` and `t0` (the release) act in every model.
 
 **The start of c_f.** When `c_f` is fitted and neither `initial` nor the model instance
@@ -39,18 +41,68 @@ continuous contact, `c_f` takes the place of `r`)."""
 
 
 @dataclasses.dataclass(frozen=True)
+class FitSpec:
+    """What a fit needs to know of a kind of model, declared once per model class
+    (`FIT_SPECS`) instead of probed off the instance.
+
+    - `rung`: its place on the ladder: `"sdof"` (the SDOF laws: k_f unbounded, next up the
+      rigid body), `"body"` (the rigid body's own equation), `"2dof"` (the 2-DOF body);
+    - `stiff`: k_f acts (False: a rigid interface, the limit k_f -> infinity; an SDOF's
+      law declares it in its class variable `rigid`);
+    - `contact`: the model has a contact law (its field `contact`, `CONTACTS`): r acts
+      unless it is `"continuous"`; the fit's horizons and starts are those of such a model;
+    - `dashpots`: the model has a dashpot coefficient (its field `damping`): c_f acts.
+    """
+
+    rung: str
+    stiff: bool = True
+    contact: bool = False
+    dashpots: bool = False
+
+
+FIT_SPECS: dict = {
+    rockjax.SDOF: FitSpec("sdof"),
+    rockjax.RigidBody: FitSpec("body"),
+    rockjax.TwoSpring2DOF: FitSpec("2dof", contact=True, dashpots=True),
+}
+"""The `FitSpec` of each model class (a model of another class cannot be fitted until its
+spec is added here, with `register_fit_spec`)."""
+
+
+def register_fit_spec(model_class: type, spec: FitSpec):
+    """Declare what a fit needs of `model_class` (a `rockjax.AbstractRockingModel`)."""
+    if not isinstance(spec, FitSpec):
+        raise TypeError(f"spec must be an identification.FitSpec, got {type(spec).__name__}")
+    FIT_SPECS[model_class] = spec
+
+
+def fit_spec(model) -> FitSpec:
+    """The `FitSpec` of a model instance (ValueError for a class without one)."""
+    spec = FIT_SPECS.get(type(model))
+    if spec is None:
+        raise ValueError(
+            f"the {type(model).__name__} model cannot be fitted: identification does not know "
+            "which parameters act in it (declare them with identification.register_fit_spec)"
+        )
+    if spec.rung == "sdof" and type(model.law).rigid:  # the law's declared class variable
+        spec = dataclasses.replace(spec, stiff=False)
+    return spec
+
+
+@dataclasses.dataclass(frozen=True)
 class FitModel:
-    """A model resolved for a fit: the rockjax model instance, its ladder name, and the
-    parameters (of `PARAM_NAMES`) that act in it."""
+    """A model resolved for a fit: the rockjax model instance, its ladder name, its
+    `FitSpec`, and the parameters (of `PARAM_NAMES`) that act in it."""
 
     model: object  # a rockjax.AbstractRockingModel
     name: str  # its name in rockjax.MODELS, else its class name
     acting: tuple
+    spec: FitSpec = FitSpec("sdof")
 
     @property
     def contact(self) -> str | None:
         """The contact law (`"impact"`, `"continuous"`), None for a model without one."""
-        return getattr(self.model, "contact", None)
+        return self.model.contact if self.spec.contact else None
 
     @property
     def has_dashpots(self) -> bool:
@@ -61,15 +113,11 @@ class FitModel:
         return self.name + (f" (contact {self.contact})" if self.contact else "")
 
 
-def _field_names(obj) -> set:
-    return {f.name for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else set()
-
-
-def _ladder_name(obj) -> str:
+def _ladder_name(obj, spec: FitSpec) -> str:
     """The name of a model instance in `rockjax.MODELS` (an SDOF by its law)."""
-    target = obj.law if isinstance(obj, rockjax.SDOF) else obj
+    target = obj.law if spec.rung == "sdof" else obj
     for name, ctor in rockjax.MODELS.items():
-        if isinstance(ctor, type) and type(target) is ctor:
+        if type(target) is ctor:
             return name
     return type(target).__name__
 
@@ -79,12 +127,12 @@ def resolve_model(model, impact: str = "paper", contact: str | None = None) -> F
     model instance) with the SDOF impact rule `impact` and, for a model with a contact law
     (the 2-DOF body), `contact` (None: the model's own). ValueError naming what is wrong."""
     obj = rockjax.get_model(model, impact)  # ValueError naming the model if unknown
-    name = model if isinstance(model, str) else _ladder_name(obj)
-    fields = _field_names(obj)
+    spec = fit_spec(obj)
+    name = model if isinstance(model, str) else _ladder_name(obj, spec)
     if contact is not None:
         if contact not in CONTACTS:
             raise ValueError(f"contact must be one of {CONTACTS}, got {contact!r}")
-        if "contact" not in fields:
+        if not spec.contact:
             raise ValueError(
                 f"contact applies to the 2-DOF body (model='two_spring_2dof') only: the {name} "
                 "model has no contact law of its own (its impacts are Eq. 2 with r); leave "
@@ -92,13 +140,13 @@ def resolve_model(model, impact: str = "paper", contact: str | None = None) -> F
             )
         obj = dataclasses.replace(obj, contact=contact)
     acting = ["u0", "t0"]
-    if not bool(getattr(obj, "rigid", False)):
+    if spec.stiff:
         acting.append("k_f")
-    if getattr(obj, "contact", "impact") != "continuous":
+    if not (spec.contact and obj.contact == "continuous"):
         acting.append("r")
-    if "damping" in fields:
+    if spec.dashpots:
         acting.append("c_f")
-    return FitModel(model=obj, name=name, acting=tuple(acting))
+    return FitModel(model=obj, name=name, acting=tuple(acting), spec=spec)
 
 
 def default_params(model="simplified", *, impact: str = "paper", contact: str | None = None):
@@ -111,11 +159,11 @@ def default_params(model="simplified", *, impact: str = "paper", contact: str | 
     # ('k_f', 'c_f', 'u0', 't0')
     ```
     """
-    fm = resolve_model(model, impact, contact)
-    return _defaults(fm)
+    return fitted_by_default(resolve_model(model, impact, contact))
 
 
-def _defaults(fm: FitModel) -> tuple:
+def fitted_by_default(fm: FitModel) -> tuple:
+    """`default_params` of a resolved model."""
     out = [p for p in DEFAULT_PARAMS if p in fm.acting]
     if "r" not in fm.acting and fm.has_dashpots:
         out.insert(1 if "k_f" in out else 0, "c_f")
@@ -210,7 +258,7 @@ def k_f_cap(fm: FitModel, k_min: float) -> float | None:
     rigid body's and the 2-DOF body's integrations grow stiff (one such fit of the rigid
     body took 9 minutes), and the 2-DOF body's initial state (a root find) loses its
     derivatives beyond about 1e11 N/m, which stops the fit with an error."""
-    return None if isinstance(fm.model, rockjax.SDOF) else K_F_CAP * k_min
+    return None if fm.spec.rung == "sdof" else K_F_CAP * k_min
 
 
 def c_f_start(structure, k_f: float) -> float:
@@ -242,7 +290,7 @@ def models_above(fm: FitModel, params: tuple) -> list:
     SDOF laws (simplified, exact, smooth, housner) -> rigid_body (when registered in
     `rockjax.MODELS`) -> two_spring_2dof with contact='continuous' and c_f fitted.
     """
-    if isinstance(fm.model, rockjax.SDOF) and "rigid_body" in rockjax.MODELS:
+    if fm.spec.rung == "sdof" and "rigid_body" in rockjax.MODELS:
         return ["rigid_body", TOP]
     if fm.has_dashpots and fm.contact == "continuous":
         return [] if "c_f" in params else ["the same model with c_f fitted"]

@@ -1,5 +1,4 @@
-"""Measured (or synthetic) free-vibration decay traces: a container, a CSV reader, and the
-detection of the release.
+"""Measured (or synthetic) free-vibration decay traces: a container and a CSV reader.
 
 A decay trace is the top displacement ``u`` [m] of a structure released from an initial
 displacement, sampled at times ``t`` [s], optionally with the uplift of the lifted corner
@@ -31,17 +30,16 @@ the count of such rows; ``drop_nan=True`` drops those rows instead, with a
 
 **Release.** A lab trace often starts before the release: the structure held at its
 initial displacement for a while, or a logger clock that does not start at 0.
-:func:`detect_release` finds the release (noise-aware, see there).
+``identification.detect_release`` (``_release.py``) finds the release (noise-aware).
 
 The package also ships three SYNTHETIC traces made with rockjax by
-``data/make_synthetic_traces.py`` (see :func:`synthetic_trace_path` and
-:func:`synthetic_truth`); they are simulations with known parameters, not measurements.
+``data/make_synthetic_traces.py`` (``_synthetic.py``: ``synthetic_trace_path``,
+``synthetic_truth``); they are simulations with known parameters, not measurements.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 import pathlib
@@ -55,17 +53,12 @@ import rockjax
 __all__ = [
     "CHANNELS",
     "DecayTrace",
-    "detect_release",
     "DroppedRowsWarning",
     "LENGTH_UNITS",
     "MAX_GAP_RATIO",
     "MIN_SAMPLES",
     "read_trace",
-    "Release",
-    "RELEASE_SIGMAS",
     "SYNTHETIC_TRACES",
-    "synthetic_trace_path",
-    "synthetic_truth",
     "TIME_UNITS",
     "TraceError",
 ]
@@ -620,201 +613,3 @@ def _check_time_step(name: str, lineno: int, t: float, t_prev: float, prev_linen
             f"time goes backwards: {t!r} after {t_prev!r} "
             f"(line {prev_lineno}); time must be strictly increasing",
         )
-
-
-
-def synthetic_trace_path(name: str):
-    """The packaged CSV file of a SYNTHETIC decay trace.
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`SYNTHETIC_TRACES`: ``"synthetic_decay_clean"``,
-        ``"synthetic_decay_noisy"`` or ``"synthetic_decay_exact"`` (without ``.csv``).
-
-    Returns
-    -------
-    pathlib.Path or importlib.resources.abc.Traversable
-        The file ``<name>.csv`` of ``rockjax._data`` (the repository's ``data/`` folder);
-        pass it to :func:`read_trace`.
-
-    Raises
-    ------
-    ValueError
-        If `name` is not a shipped synthetic trace.
-    """
-    return _packaged(name, ".csv")
-
-
-def synthetic_truth(name: str) -> dict:
-    """The true parameters and settings of a SYNTHETIC decay trace (its JSON sidecar).
-
-    Parameters
-    ----------
-    name : str
-        One of :data:`SYNTHETIC_TRACES`.
-
-    Returns
-    -------
-    dict
-        Keys ``synthetic`` (True), ``description``, ``model``, ``k_f`` [N/m], ``r`` [-],
-        ``u0`` [m], ``t0`` [s], ``noise_std_u`` [m], ``noise_std_uplift`` [m], ``seed``,
-        ``rate_hz`` [Hz], ``duration_s`` [s], ``structure`` (the other Table 1 fields, SI
-        units), ``generator`` and ``rockjax_version``.
-    """
-    with _packaged(name, ".json").open("r", encoding="utf-8") as f:
-        return json.load(f)
-
-
-def _packaged(name: str, suffix: str):
-    if name not in SYNTHETIC_TRACES:
-        raise ValueError(
-            f"unknown synthetic trace {name!r}; expected one of {', '.join(SYNTHETIC_TRACES)}"
-        )
-    import rockjax  # lazy: reading a trace file needs no JAX
-
-    res = rockjax.datasets.packaged_data_path(name + suffix)
-    if not res.is_file():
-        raise FileNotFoundError(
-            f"synthetic trace file {name + suffix} not found (expected at {res}); "
-            "run `python data/make_synthetic_traces.py`"
-        )
-    return res
-
-
-# ----------------------------------------------------------------------------- release
-
-RELEASE_SIGMAS = 5.0
-"""A sample departs from the initial plateau when it lies more than this many noise standard
-deviations from the plateau's level, and so do the next two."""
-_PERSIST = 3  # consecutive samples beyond the threshold that make a departure
-_HOLD_STEPS = 3.0  # a release more than this many steps after the first sample: a hold
-
-
-@dataclasses.dataclass(frozen=True)
-class Release:
-    """Where the free vibration of a decay trace starts (see :func:`detect_release`).
-
-    - ``time`` [s]: the release time to use: ``estimate`` when the trace starts with a
-      hold (``held``), else the first sample's time.
-    - ``estimate`` [s]: the release time fitted to the start of the motion.
-    - ``index``: the last sample of the initial plateau, before the signal departs from it.
-    - ``level`` [m]: the displacement at the release: the fitted plateau level when
-      ``held``, else the first sample.
-    - ``sigma`` [m]: the noise standard deviation used; ``threshold`` [m]: the departure
-      threshold (``RELEASE_SIGMAS`` sigma).
-    - ``held``: the trace starts with a hold (or a clock offset): ``estimate`` lies more
-      than 3 sample steps after the first sample.
-    """
-
-    time: float
-    estimate: float
-    index: int
-    level: float
-    sigma: float
-    threshold: float
-    held: bool
-
-    def as_dict(self) -> dict:
-        """JSON-ready, keys with their units."""
-        return {"release_time_s": self.time, "estimate_s": self.estimate,
-                "plateau_last_index": self.index, "level_m": self.level,
-                "noise_sigma_m": self.sigma, "threshold_m": self.threshold,
-                "held": self.held}
-
-
-def detect_release(trace: DecayTrace, *, sigmas: float = RELEASE_SIGMAS) -> Release:
-    r"""Find where the free vibration of a decay trace starts (a :class:`Release`).
-
-    Lab traces often start before the release: the structure held at its initial
-    displacement (noisy samples about a constant), or a logger clock that does not start
-    at 0. The detection, in three steps:
-
-    1. **Noise.** $\sigma$ = 1.4826 MAD of the second differences $/\sqrt6$ (white noise
-       of std $\sigma$ gives second differences of std $\sqrt6\,\sigma$; the smooth motion
-       adds little at usual rates); when 10 samples or more precede the release found
-       with it (a hold), the robust spread (1.4826 MAD) of those, and steps 2-3 again.
-    2. **Plateau.** From the first sample up to the last one before the first run of 3
-       samples that all lie more than `sigmas` $\sigma$ from the plateau's median (iterated:
-       a single spike does not end it).
-    3. **Release time.** A structure released at rest starts as
-       $u = u_0 - c\,(t - t_0)^2$: that hinge (constant, then parabola) is fitted by least
-       squares to the end of the plateau and the start of the motion (up to a departure of
-       max(4 threshold, 10 % of $u_0$)), $t_0$ on a grid of 1/20 step, $u_0$ and $c$
-       linear. Unlike the last plateau sample, which lags by the time the motion takes to
-       exceed the noise, this is not biased late.
-
-    The trace starts with a hold when the release lies more than 3 steps after the first
-    sample; otherwise it is taken to start at the release (``time`` = ``t[0]``, ``level`` =
-    ``u[0]``).
-    """
-    t, u = np.asarray(trace.t), np.asarray(trace.u)
-    dt = float(np.median(np.diff(t)))
-    sigma = _noise_sigma(u)
-    k, level, thr = _plateau(u, sigma, sigmas)
-    est, fitted_level = _hinge_fit(t, u, k, level, thr)
-    plat = u[t < est - dt]  # the hold, if any: its spread is the noise
-    if plat.size >= MIN_SAMPLES:
-        s_plat = 1.4826 * float(np.median(np.abs(plat - np.median(plat))))
-        if s_plat > 0:
-            sigma = s_plat
-            k, level, thr = _plateau(u, sigma, sigmas)
-            est, fitted_level = _hinge_fit(t, u, k, level, thr)
-    held = bool(est - t[0] > _HOLD_STEPS * dt)
-    return Release(time=est if held else float(t[0]), estimate=est, index=k,
-                   level=fitted_level if held else float(u[0]), sigma=sigma,
-                   threshold=thr, held=held)
-
-
-def _noise_sigma(u: np.ndarray) -> float:
-    """Noise std from the robust spread of the second differences."""
-    d2 = np.diff(u, 2)
-    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-
-
-def _plateau(u: np.ndarray, sigma: float, sigmas: float) -> tuple[int, float, float]:
-    """(last index of the initial plateau, its median, the departure threshold)."""
-    n = u.size
-    thr = max(sigmas * sigma, 1e-9 * float(np.max(np.abs(u))))
-    level = float(np.median(u[: min(5, n)]))
-    k = 0
-    for _ in range(8):
-        out = np.abs(u - level) > thr
-        run = np.ones(n - _PERSIST + 1, bool)
-        for j in range(_PERSIST):
-            run &= out[j : n - _PERSIST + 1 + j]
-        starts = np.flatnonzero(run)
-        k = max(int(starts[0]) - 1, 0) if starts.size else n - 1
-        new = float(np.median(u[: k + 1]))
-        if new == level:
-            break
-        level = new
-    return k, level, thr
-
-
-def _hinge_fit(t: np.ndarray, u: np.ndarray, k: int, level: float,
-               thr: float) -> tuple[float, float]:
-    """(release time, level) of the least-squares hinge u = L - c max(t - t_r, 0)^2 over
-    the end of the plateau and the start of the motion (see `detect_release`)."""
-    n = u.size
-    reach = max(4.0 * thr, 0.1 * abs(level))
-    beyond = np.flatnonzero(np.abs(u[k + 1 :] - level) > reach)
-    e = min(k + 1 + (int(beyond[0]) + 1 if beyond.size else n), n)  # window end
-    e = max(e, min(k + 4, n))
-    w0 = max(0, k + 1 - max(20, 2 * (e - k - 1)))  # some of the plateau, not all of it
-    tw, uw = t[w0:e], u[w0:e]
-    dt = float(np.median(np.diff(t)))
-    lo, hi = float(tw[0]) - 2 * dt, float(t[min(k + 1, n - 1)])
-    cand = np.linspace(lo, hi, int(min(4000, max(2, 20 * (hi - lo) / dt))))
-    q = np.maximum(tw[None, :] - cand[:, None], 0.0) ** 2  # (candidates, window)
-    qc = q - q.mean(axis=1, keepdims=True)
-    uc = uw - uw.mean()
-    var_q = np.sum(qc**2, axis=1)
-    cov = qc @ uc
-    ok = var_q > 0
-    gain = np.where(ok, cov**2 / np.where(ok, var_q, 1.0), -np.inf)  # RSS reduction
-    if not np.any(ok):
-        return float(t[k]), level
-    i = int(np.argmax(gain))
-    c = -cov[i] / var_q[i]
-    return float(cand[i]), float(uw.mean() + c * q[i].mean())

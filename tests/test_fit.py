@@ -197,17 +197,18 @@ def test_hold_and_clock_offset_set_the_start_and_fixed_release():
     # at the first sample (of a hold: a noisy sample, anywhere in time)
     trace, truth = _load("synthetic_decay_noisy")
     s = rockjax.mcmanus_column()
-    setup = identification._fit._setup
-    kw = dict(model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
-              horizons=(0.25, 0.5, 1.0), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
-              progress=False)
+    setup = identification._problem.setup
+    kw = identification._problem.Settings(
+        model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
+        horizons=(0.25, 0.5, 1.0), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
+        progress=False)
     shifted = identification.DecayTrace(trace.t + 2.5, trace.u, trace.uplift)
-    pb = setup(shifted, s, ("k_f", "r"), **kw)
+    pb = setup(shifted, s, ("k_f", "r"), kw)
     assert pb.values0["t0"] == 2.5 and pb.values0["u0"] == trace.u[0]
     rng = np.random.default_rng(0)
     t = np.concatenate([np.arange(200) / 200, 1.0 + trace.t])
     u = np.concatenate([0.1 + rng.normal(0, 5e-4, 200), trace.u])
-    pb = setup(identification.DecayTrace(t, u), s, ("k_f", "r"), **kw)
+    pb = setup(identification.DecayTrace(t, u), s, ("k_f", "r"), kw)
     assert abs(pb.values0["t0"] - 1.0) < 0.015 and abs(pb.values0["u0"] - 0.1) < 3e-4
     # the horizons count from the release: the hold is in every one of them
     assert pb.within(0.25)[:200].all() and not pb.within(0.25)[200 + 420:].any()
@@ -226,8 +227,30 @@ def test_amplitude_beyond_overturning_is_refused_with_a_units_hint():
     # spikes beyond u_overturn (outliers, which the fit leaves out) are not a units problem
     spiked = trace.u.copy()
     spiked[[400, 900]] = 0.5
-    pb = identification._fit._setup(
+    pb = identification._problem.setup(
         identification.DecayTrace(trace.t, spiked), rockjax.mcmanus_column(), ("k_f", "r"),
-        model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
-        horizons=(1.0,), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11, progress=False)
+        identification._problem.Settings(
+            model="simplified", impact="paper", initial=None, starts=2, max_iter=40,
+            horizons=(1.0,), tol=1e-9, uplift_weight=1.0, rtol=1e-9, atol=1e-11,
+            progress=False))
     assert pb.scale == 0.5
+
+
+@pytest.mark.slow
+def test_an_optimistix_solver_gives_the_default_fit():
+    """optimizer= takes an optimistix least-squares solver (each stage then runs
+    `optimistix.least_squares`): on the noisy trace it lands on the default LM's optimum
+    (its compile costs minutes: slow)."""
+    import optimistix
+
+    trace, _ = _load("synthetic_decay_noisy")
+    kw = dict(params=("k_f", "r", "u0"), initial={"k_f": 1.6e6, "r": 0.7}, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = fit_decay(trace, rockjax.mcmanus_column(), **kw)
+        fit = fit_decay(trace, rockjax.mcmanus_column(), **kw,
+                        optimizer=optimistix.LevenbergMarquardt(rtol=1e-6, atol=1e-9))
+    assert fit.converged and ref.converged
+    for p in ("k_f", "r", "u0"):
+        assert abs(fit.values[p] - ref.values[p]) < 0.01 * ref.stderr[p], p
+    assert fit.loss == pytest.approx(ref.loss, rel=1e-6)

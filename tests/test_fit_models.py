@@ -155,8 +155,9 @@ def _setup(model, **kwargs):
     """The checked problem of a fit (no integration): fit_decay's defaults otherwise."""
     kw = dict(impact="paper", initial=None, starts=None, max_iter=4, horizons=None, tol=1e-9,
               uplift_weight=1.0, rtol=1e-9, atol=1e-11, progress=False)
-    return identification._fit._setup(TR, rockjax.mcmanus_column(), kwargs.pop("params", None),
-                                      model=model, **{**kw, **kwargs})
+    return identification._problem.setup(
+        TR, rockjax.mcmanus_column(), kwargs.pop("params", None),
+        identification._problem.Settings(model=model, **{**kw, **kwargs}))
 
 
 def test_defaults_of_the_2dof_body_and_the_c_f_start():
@@ -334,3 +335,32 @@ def test_rigid_body_fits(continuous):
     fit, _, caught = recorded_fit(continuous[0], model="rigid_body")
     assert fit.lack_of_fit["fires"]
     assert "next model up the ladder is two_spring_2dof" in lack_warnings(caught)[0]
+
+
+def test_models_declare_what_a_fit_needs():
+    """The parameters that act come from a FitSpec declared per model class (and the SDOF
+    law's class variable `rigid`), not from probing the instance; a model class without a
+    spec is refused by name until one is registered."""
+    acting = {name: set(identification.resolve_model(name).acting)
+              for name in ("housner", "simplified", "rigid_body", "two_spring_2dof")}
+    assert acting["housner"] == {"r", "u0", "t0"}
+    assert acting["simplified"] == acting["rigid_body"] == {"k_f", "r", "u0", "t0"}
+    assert acting["two_spring_2dof"] == {"k_f", "r", "c_f", "u0", "t0"}
+    cont = identification.resolve_model("two_spring_2dof", contact="continuous")
+    assert set(cont.acting) == {"k_f", "c_f", "u0", "t0"} and cont.spec.dashpots
+
+    class Rocker(rockjax.RigidBody):
+        pass
+
+    with pytest.raises(ValueError, match=r"the Rocker model cannot be fitted: .*"
+                                         r"identification.register_fit_spec"):
+        identification.resolve_model(Rocker())
+    try:
+        identification.register_fit_spec(Rocker, identification.FitSpec("body", stiff=False))
+        fm = identification.resolve_model(Rocker())
+        assert set(fm.acting) == {"r", "u0", "t0"} and fm.name == "Rocker"
+        assert identification.default_params(Rocker()) == ("r", "u0", "t0")
+        with pytest.raises(TypeError, match="FitSpec"):
+            identification.register_fit_spec(Rocker, {"rung": "body"})
+    finally:
+        identification._models.FIT_SPECS.pop(Rocker, None)

@@ -1,0 +1,105 @@
+"""Outliers: samples of a trace far from the converged fit (spikes of a faulty sensor).
+
+After a converged fit, the residuals of each channel (displacement, uplift) are compared
+with their robust spread (`find_outliers`); the samples far outside it are left out and
+the whole trace is fitted again (`check_outliers`, called by `_stages.run_stages`), at
+most `MAX_REFITS` times; `outlier_message` is the `OutlierWarning`'s text.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+import rockjax
+
+from ._problem import Problem
+from ._residuals import channels, respond, TraceModel
+
+OUTLIER_SIGMAS = 6.0
+"""A residual more than this many robust standard deviations from its channel's median
+(and above `_OUTLIER_FLOOR` of the trace amplitude) marks an outlier."""
+_OUTLIER_FLOOR = 1e-6
+MAX_REFITS = 3
+MAX_OUTLIER_FRACTION = 0.05
+
+
+def find_outliers(channels, excluded, within, sigmas=OUTLIER_SIGMAS):
+    """Samples whose residual is an outlier, as a boolean array (n samples).
+
+    `channels`: residual arrays (n,) scaled by the trace amplitude (displacement, and
+    uplift when measured); `excluded`: samples already left out of the fit; `within`: the
+    samples the fit covers (its last horizon), the only ones considered. The scale of
+    each channel is the median absolute deviation (x 1.4826, the standard deviation for
+    Gaussian noise) over its kept samples (for uplift, those with a non-zero residual: the
+    model and a noise-free trace both have exactly zero uplift before lift-off). A sample
+    is an outlier when its residual lies more than `sigmas` of these, and more than
+    `_OUTLIER_FLOOR`, from the median, and - since a few large spikes pull the fit and
+    spread the residuals of the other samples - within a factor 10 of the largest such
+    deviation among the kept samples. Excluded samples stay out while they remain
+    outliers: the search converges in a few refits, largest spikes first.
+    """
+    flag = np.zeros(channels[0].shape, bool)
+    for k, res in enumerate(channels):
+        kept = within & ~excluded & ((res != 0) if k > 0 else True)
+        if np.count_nonzero(kept) < 10:
+            continue
+        med = float(np.median(res[kept]))
+        mad = 1.4826 * float(np.median(np.abs(res[kept] - med)))
+        dev = np.abs(res - med)
+        z = dev / max(mad, 1e-300)
+        big = (dev > sigmas * mad) & (dev > _OUTLIER_FLOOR) & within
+        if not np.any(big & ~excluded):
+            flag |= big & excluded
+            continue
+        z_top = float(np.max(np.where(within & ~excluded, z, 0.0)))
+        flag |= big & (excluded | (z >= 0.1 * z_top))
+    return flag
+
+
+
+def check_outliers(problem: Problem, model: TraceModel, run) -> bool:
+    """Look for outliers in the fit just finished; update `run.keep`. True: fit again.
+
+    Outliers (spikes) are residuals of the converged fit far outside the spread of the
+    others. They pull a least-squares fit off (a few 0.3 m spikes bias k_f by 5 %): leave
+    them out and fit the whole trace again (see find_outliers). An unconverged fit is not
+    checked: its residuals are a misfit, not noise.
+    """
+    z_now = np.asarray(run.best_params())
+    last = np.asarray(run.opt_state.best_value) if run.lm else run.vals[:, -1]
+    i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
+    res_now = respond(model, jnp.asarray(z_now[i_now]))
+    if not (run.converged[i_now] and int(res_now.status) == rockjax.STATUS["completed"]):
+        return False
+    found = find_outliers(channels(problem, res_now), ~run.keep,
+                           problem.within(problem.horizons[-1]))
+    # more than a few is a misfit (a wrong minimum, a wrong model), not spikes
+    if (np.count_nonzero(found) > MAX_OUTLIER_FRACTION * problem.t.size
+            or np.array_equal(found, ~run.keep)):
+        return False
+    run.keep = ~found  # after the last refit: the final statistics only
+    if run.n_refits >= MAX_REFITS:
+        return False
+    run.n_refits += 1
+    return True
+
+
+def outlier_message(problem: Problem, u_fit: np.ndarray, keep: np.ndarray,
+                     sigma: float) -> str | None:
+    """The OutlierWarning's message, or None when no sample was left out."""
+    outliers = np.flatnonzero(~keep)
+    if not outliers.size:
+        return None
+    t, u_meas = problem.t, problem.u_meas
+    worst = outliers[np.argmax(np.abs(u_fit - u_meas)[outliers])]
+    return (
+        f"{outliers.size} sample(s) of the trace lie more than {OUTLIER_SIGMAS:g} robust "
+        f"standard deviations from the fit (largest displacement residual "
+        f"{abs(u_fit[worst] - u_meas[worst]):.3g} m at t = {t[worst]:.6g} s; noise "
+        f"sigma {sigma:.3g} m): they were left out and the fit repeated without them "
+        "(indices in FitResult.outliers)"
+    )
+
+
+# ---------------------------------------------------------------------- result

@@ -1,0 +1,295 @@
+"""The fit's problem: the checked arguments of `fit_decay`, with the trace as arrays.
+
+`Settings` holds the keyword arguments of `fit_decay` (the same names, the same defaults);
+`setup(trace, structure, params, settings)` checks them with the trace and the structure
+(ValueError, or `TraceError`, naming the first bad one) and returns the `Problem`: the
+model resolved (`identification._models`), the parameters to fit, the release found in
+the trace (`detect_release`), the starting (or held) values of every parameter and the
+bounds of k_f. Nothing here is traced or compiled.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+import rockjax
+
+from . import _models
+from ._models import FitModel
+from ._release import detect_release, Release
+from ._trace import DecayTrace, TraceError
+
+PARAM_NAMES = ("k_f", "r", "u0", "t0", "c_f")
+"""The parameters `fit_decay` can fit (`DEFAULT_PARAMS`, less those that do not act in the
+model, are fitted by default; see `identification.default_params`)."""
+UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
+"""The (SI) unit of each parameter."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """The keyword arguments of `fit_decay` (its docstring says what each means)."""
+
+    model: object = "simplified"
+    impact: str = "paper"
+    contact: str | None = None
+    initial: dict | None = None
+    starts: int | None = None
+    max_iter: int = 40
+    horizons: object = None
+    tol: float = 1e-9
+    uplift_weight: float = 1.0
+    rtol: float = 1e-9
+    atol: float = 1e-11
+    progress: object = None
+
+
+def k_min_of(structure) -> float:
+    """The stability limit of k_f (Eq. 15), W H_c / (2 B^2) [N/m]."""
+    return structure.W * structure.H_c / (2.0 * structure.B**2)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Problem:
+    """The checked arguments of `fit_decay`, with the trace as float arrays."""
+
+    structure: object
+    params: tuple
+    fit_model: FitModel  # the model simulated, and the parameters that act in it
+    impact: str
+    horizons: tuple  # fractions of the trace, floats
+    starts: int
+    max_iter: int
+    tol: float
+    uplift_weight: float
+    rtol: float
+    atol: float
+    progress: object
+    t: np.ndarray
+    u_meas: np.ndarray
+    up_meas: np.ndarray | None
+    scale: float  # trace amplitude max |u| [m]: the unit of the residuals
+    values0: dict  # starting (or fixed) values of all of PARAM_NAMES
+    k_min: float  # stability limit of k_f (Eq. 15) [N/m]
+    release: Release  # found in the trace (detect_release)
+    k_cap: float | None = None  # the (smooth) upper bound of k_f, None: none
+    notes: tuple = ()  # default parameters left out (they do not act in the model)
+
+    @property
+    def t_ref(self) -> float:
+        """The starting value of t0 [s]: the origin of its unconstrained coordinate."""
+        return self.values0["t0"]
+
+    @property
+    def fits_uplift(self) -> bool:
+        """Whether the uplift channel is in the residuals."""
+        return self.up_meas is not None and self.uplift_weight > 0
+
+    def samples(self) -> np.ndarray:
+        """The samples that may be fitted (all of them; boolean)."""
+        return np.ones(self.t.size, bool)
+
+    def within(self, frac: float) -> np.ndarray:
+        """The samples up to the first `frac` of the motion after the release (boolean):
+        the samples before the release (a hold) are in every horizon."""
+        t, t_rel = self.t, min(max(self.t_ref, self.t[0]), self.t[-1])
+        return t <= t_rel + frac * (t[-1] - t_rel)
+
+
+
+def check_structure(structure):
+    structure = rockjax.mcmanus_column() if structure is None else structure
+    if not isinstance(structure, rockjax.RockingStructure):
+        raise ValueError(
+            f"structure must be a rockjax.RockingStructure, got {type(structure).__name__}"
+        )
+    if any(np.ndim(getattr(structure, k)) != 0 for k in ("m_e", "m_b", "H_e", "H_b", "B",
+                                                         "I_eg", "I_bg", "k_f", "g")):
+        raise ValueError("structure must be a single structure (scalar fields), not a batch")
+    return structure
+
+
+def _check_params(params, fm: FitModel) -> tuple:
+    """The parameters to fit, checked (the default ones of the model for None)."""
+    if params is None:
+        return _models.fitted_by_default(fm)
+    if isinstance(params, str):
+        raise ValueError(
+            f"params must be a sequence of names from {PARAM_NAMES}, e.g. ('k_f', 'r'), "
+            f"got the string {params!r}"
+        )
+    params = tuple(params)
+    bad = [p for p in params if p not in PARAM_NAMES]
+    if bad or not params or len(set(params)) != len(params):
+        raise ValueError(f"params must be distinct names from {PARAM_NAMES}, got {params}")
+    _models.refuse_inactive(fm, params)
+    return params
+
+
+def _check_options(starts, max_iter, impact, horizons, tol, uplift_weight) -> tuple:
+    """Check the optimiser and simulation options; returns `horizons` as a tuple of floats."""
+    if not (isinstance(starts, int) and starts >= 1):
+        raise ValueError(f"starts must be a positive integer, got {starts!r}")
+    if not (isinstance(max_iter, int) and max_iter >= 1):
+        raise ValueError(f"max_iter must be a positive integer, got {max_iter!r}")
+    if impact not in rockjax.IMPACT_RULES:
+        raise ValueError(f"impact must be one of {rockjax.IMPACT_RULES}, got {impact!r}")
+    try:
+        hs = tuple(float(h) for h in horizons)
+    except (TypeError, ValueError):
+        hs = ()
+    if not hs or not all(0.0 < h <= 1.0 for h in hs):
+        raise ValueError(
+            f"horizons must be a non-empty sequence of fractions in (0, 1], got {horizons!r}"
+        )
+    for name, val in (("tol", tol), ("uplift_weight", uplift_weight)):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0, got {val!r}")
+    return hs
+
+
+def as_trace(trace) -> DecayTrace:
+    if isinstance(trace, DecayTrace):
+        return trace
+    if not (hasattr(trace, "t") and hasattr(trace, "u")):
+        raise ValueError(
+            "trace must be an identification.DecayTrace (t [s], u [m], optional uplift "
+            f"[m]), got {type(trace).__name__}"
+        )
+    # validated like a DecayTrace: finite, strictly increasing, no gaps, >= 10 samples
+    return DecayTrace(t=trace.t, u=trace.u, uplift=getattr(trace, "uplift", None),
+                      source=str(getattr(trace, "source", "")))
+
+
+def _trace_arrays(trace: DecayTrace, params: tuple, structure):
+    """(t, u, uplift or None, amplitude max |u|) of the trace, checked to be fittable."""
+    t = np.asarray(trace.t, float)
+    u_meas = np.asarray(trace.u, float)
+    up_meas = None if getattr(trace, "uplift", None) is None else np.asarray(trace.uplift, float)
+    if t.size < max(10, len(params) + 2):
+        raise ValueError(f"the trace has {t.size} samples: too few to fit {params}")
+    scale = float(np.max(np.abs(u_meas)))
+    if not scale > 0:
+        raise ValueError("the trace's displacement is zero everywhere: nothing to fit")
+    _check_amplitude(trace, scale, float(structure.u_overturn))
+    return t, u_meas, up_meas, scale
+
+
+def _check_amplitude(trace: DecayTrace, amplitude: float, u_overturn: float):
+    """TraceError when the trace's displacement lies beyond u_overturn: a structure
+    released there overturns, so the trace is most likely in other units (mm, cm).
+
+    Judged on a 5-point running median of u, so that spikes (outliers, left out by the
+    fit) do not count; the message gives the plain max |u|."""
+    u = np.pad(np.asarray(trace.u, float), 2, mode="edge")
+    smooth = np.median(np.lib.stride_tricks.sliding_window_view(u, 5), axis=1)
+    if float(np.max(np.abs(smooth))) <= u_overturn:
+        return
+    unit, frm = trace.units.get("u", "m"), trace.units_from.get("u", "")
+    msg = (f"max |u| = {amplitude:.4g} m is beyond u_overturn = {u_overturn:.4g} m of the "
+           "structure, where it would overturn")
+    if frm == "header":
+        msg += (f": the header gives u in {unit} (column {trace.columns.get('u', 'u')!r}); "
+                "check that unit and the structure")
+        raise TraceError(msg, msg + " (--structure)")
+    msg += f" (u read in {unit}, {frm or 'SI'}): is the trace in mm? "
+    raise TraceError(
+        msg + "give units in the header, such as t,u_mm, or read it with "
+        "read_trace(path, units={'u': 'mm'})",
+        msg + "give units in the header, such as t,u_mm, or pass --units u=mm",
+    )
+
+
+def _starting_values(structure, release: Release, initial, fm: FitModel, params: tuple):
+    """(starting values of all of PARAM_NAMES, the stability limit k_min of k_f)."""
+    values0 = {
+        "k_f": float(structure.k_f),
+        "r": float(structure.restitution),
+        "u0": float(release.level),
+        "t0": float(release.time),
+    }
+    if initial is not None and not isinstance(initial, dict):
+        raise ValueError(
+            f"initial must be a dict of starting values such as {{'k_f': 5e5}}, got {initial!r}"
+        )
+    if initial:
+        unknown = set(initial) - set(PARAM_NAMES)
+        if unknown:
+            raise ValueError(f"initial has unknown parameter(s) {sorted(unknown)}")
+        for k, v in initial.items():
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise ValueError(f"initial {k} must be a number, got {v!r}") from None
+            if not math.isfinite(v):
+                raise ValueError(f"initial {k} must be finite, got {v}")
+            values0[k] = v
+    k_min = float(k_min_of(structure))
+    if not values0["k_f"] > k_min:
+        raise ValueError(
+            f"initial k_f must exceed the stability limit {k_min:.6g} N/m "
+            f"(2 k_f B^2 > W H_c), got {values0['k_f']:.6g} N/m"
+        )
+    if not 0.0 < values0["r"] < 1.0:
+        raise ValueError(f"initial r must lie strictly inside (0, 1), got {values0['r']}")
+    values0["c_f"] = _start_c_f(structure, values0, initial, fm, params)
+    k_cap = _models.k_f_cap(fm, k_min)
+    if k_cap is not None and not values0["k_f"] < 0.1 * k_cap:
+        raise ValueError(
+            f"initial k_f must lie below {0.1 * k_cap:.6g} N/m ({0.1 * _models.K_F_CAP:g} x "
+            f"the stability limit) with the {fm.describe()} model, got {values0['k_f']:.6g} "
+            "N/m: its fits bound k_f (the foundation is rigid for any purpose beyond)"
+        )
+    return values0, k_min
+
+
+def _start_c_f(structure, values0: dict, initial, fm: FitModel, params: tuple) -> float:
+    """The start (or held value) of c_f [N s/m]: `initial`, else the model instance's
+    damping, else (fitted) 5 % of critical of the vertical mode at the starting k_f."""
+    given = (initial or {}).get("c_f")
+    if given is not None and not fm.has_dashpots:
+        raise ValueError(
+            f"initial c_f: c_f (the dashpot coefficient of the 2-DOF body) is not a "
+            f"parameter of the {fm.describe()} model; leave it out of initial"
+        )
+    if given is not None:
+        c_f = values0["c_f"]  # checked to be a finite number above
+    else:
+        c_f = _models.model_damping(fm)
+        if "c_f" in params and not c_f > 0:
+            c_f = _models.c_f_start(structure, values0["k_f"])
+    if "c_f" in params and not c_f > 0:
+        raise ValueError(
+            f"initial c_f must be positive to be fitted (its logarithm is), got {c_f:g} N s/m"
+        )
+    if not c_f >= 0:
+        raise ValueError(f"initial c_f must be >= 0 (a dashpot coefficient), got {c_f:g} N s/m")
+    return c_f
+
+
+def setup(trace, structure, params, settings: Settings = Settings()) -> Problem:
+    """Check and normalise the arguments of `fit_decay` (ValueError on the first bad one)."""
+    st = settings
+    structure = check_structure(structure)
+    # ValueError naming the model (or the impact rule, or the contact law) if unknown
+    fm = _models.resolve_model(st.model, st.impact, st.contact)
+    notes = tuple(_models.default_notes(fm)) if params is None else ()
+    params = _check_params(params, fm)
+    horizons = _models.default_horizons(fm) if st.horizons is None else st.horizons
+    starts = _models.default_starts(fm) if st.starts is None else st.starts
+    horizons = _check_options(starts, st.max_iter, st.impact, horizons, st.tol,
+                              st.uplift_weight)
+    trace = as_trace(trace)
+    t, u_meas, up_meas, scale = _trace_arrays(trace, params, structure)
+    release = detect_release(trace)
+    values0, k_min = _starting_values(structure, release, st.initial, fm, params)
+    return Problem(
+        structure=structure, params=params, fit_model=fm, impact=st.impact,
+        horizons=horizons, starts=starts, max_iter=st.max_iter, tol=st.tol,
+        uplift_weight=st.uplift_weight, rtol=st.rtol, atol=st.atol, progress=st.progress,
+        t=t, u_meas=u_meas, up_meas=up_meas, scale=scale, values0=values0, k_min=k_min,
+        release=release, notes=notes, k_cap=_models.k_f_cap(fm, k_min),
+    )

@@ -1,0 +1,197 @@
+r"""The residuals of a fit and their Jacobian: the compiled part of `fit_decay`.
+
+The model is `rockjax.simulate` of a release from rest at $u_0$ at time $t_0$ with any model
+of the fidelity ladder (`identification._models`); before $t_0$ the structure is held at
+$u_0$. Since it is released at rest, the model is continuously differentiable in $t_0$ (the
+velocity is 0 on both sides of the release), and every sample is defined wherever $t_0$
+lies: samples before it (a hold) inform $u_0$, the others all the parameters. The residuals
+are the differences between the model and the measured top displacement (and uplift, when
+the trace has that channel), scaled by the trace amplitude; their Jacobian is taken in
+forward mode.
+
+`TraceModel` holds the trace and the values as arrays, so that the compiled programs
+(`compiled`: `eqx.filter_jit`, kept on disk by `identification._aot` when JAX's persistent
+compilation cache is on) are reused by any trace of the same length with the same
+parameters and settings. Each stage of the growing horizon simulates only as far as the
+last sample it fits.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import math
+import sys
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import rockjax
+
+from . import _aot, _transforms
+from ._problem import Problem
+
+
+class TraceModel(eqx.Module):
+    """The model of the trace at a point z, and its residuals: the compiled part of the fit.
+
+    The trace and the values are arrays, so that `_stages.run_chunk` and `respond` (compiled with
+    `eqx.filter_jit`) are reused by any trace of the same length with the same `params` and
+    settings (strings and Python numbers are static: part of the compilation key).
+    """
+
+    structure: rockjax.RockingStructure
+    t: jax.Array  # sample times [s]
+    u: jax.Array  # measured displacement [m]
+    up: jax.Array | None  # measured uplift [m], None when not fitted
+    values0: dict  # starting / fixed values of all of PARAM_NAMES
+    k_min: jax.Array
+    scale: jax.Array
+    t_ref: jax.Array
+    eps: jax.Array  # spacing of the model times of the samples before the release [s]
+    eps_end: jax.Array  # spacing of the model times of the samples after t_end [s]
+    k_span: jax.Array | None  # log(k_cap - k_min): the bound of k_f, None: unbounded
+    uplift_weight: jax.Array
+    model: object  # the model instance (its dashpot coefficient an array, set from c_f)
+    params: tuple = eqx.field(static=True)
+    dashpots: bool = eqx.field(static=True)  # the model has a dashpot coefficient (c_f)
+    impact: str = eqx.field(static=True)
+    rtol: float = eqx.field(static=True)
+    atol: float = eqx.field(static=True)
+
+    @classmethod
+    def build(cls, pb: Problem) -> TraceModel:
+        arr = jnp.asarray
+        n = pb.t.size
+        return cls(
+            structure=pb.structure, t=arr(pb.t), u=arr(pb.u_meas),
+            up=arr(pb.up_meas) if pb.fits_uplift else None,
+            values0={k: arr(float(v)) for k, v in pb.values0.items()},
+            k_min=arr(pb.k_min), scale=arr(pb.scale), t_ref=arr(pb.t_ref),
+            k_span=None if pb.k_cap is None else arr(math.log(pb.k_cap - pb.k_min)),
+            eps=arr(1e-9 * float(np.median(np.diff(pb.t))) / n),
+            eps_end=arr(1e-9 * float(np.median(np.diff(pb.t)))),
+            uplift_weight=arr(float(pb.uplift_weight)), model=_model_instance(pb),
+            params=pb.params, dashpots=pb.fit_model.has_dashpots, impact=pb.impact,
+            rtol=float(pb.rtol), atol=float(pb.atol),
+        )
+
+    def decode(self, z) -> dict:
+        """Unconstrained z (fitted params only) -> dict of all the natural values."""
+        return _transforms.decode(z, self.params, self.values0, self.k_min, self.scale,
+                                  self.t_ref, self.k_span)
+
+    def respond(self, z, t_end=None):
+        """The model on the trace times: held at u0 before the release at t0, then
+        `rockjax.simulate` of the release at rest (model time t - t0).
+
+        The samples before the release get model times 0, eps, 2 eps, ... (eps ~ 1e-9 of
+        a step / n: strictly increasing, as `simulate` needs, and as good as 0: the state
+        there is the release state to ~1e-20 m), which do not depend on t0. `t_end`
+        (trace time [s], traced): the simulation stops there, the samples after it get
+        the state at t_end (+ n eps_end, eps_end ~ 1e-9 of a step): the residuals of a
+        short horizon cost a short simulation.
+        """
+        v = self.decode(z)
+        s = self.structure.replace(k_f=v["k_f"])
+        model = self.model
+        if self.dashpots:
+            model = eqx.tree_at(lambda m: m.damping, model, v["c_f"])
+        k = jnp.arange(self.t.shape[0])
+        ts = jnp.maximum(self.t - v["t0"], self.eps * k)
+        if t_end is not None:
+            ts = jnp.minimum(ts, jnp.maximum(t_end - v["t0"], 0.0) + self.eps_end * k)
+        return rockjax.simulate(
+            s, rockjax.FreeVibration(v["u0"]), ts[-1], ts=ts, r=v["r"], model=model,
+            impact=self.impact, rtol=self.rtol, atol=self.atol, adjoint="forward",
+        )
+
+    def residuals(self, z, mask):
+        """Masked residuals (displacement, then weighted uplift) in units of `scale`."""
+        # the simulation ends at the last sample in the fit (a horizon, padding)
+        res = self.respond(z, jnp.max(jnp.where(mask > 0, self.t, self.t[0])))
+        parts = [mask * (res.u - self.u) / self.scale]
+        if self.up is not None:
+            parts.append(mask * self.uplift_weight * (res.uplift - self.up) / self.scale)
+        r = jnp.concatenate(parts)
+        # a failed or overturned run is a bad point, not a crash: large finite residuals
+        bad = (res.status != rockjax.STATUS["completed"]) | ~jnp.all(jnp.isfinite(r))
+        return jnp.where(bad, 1e3, r)
+
+    def res_jac(self, z, mask):
+        """The residuals and their Jacobian d r / d z (forward mode; one trace of the
+        model: the residuals are the primal of the Jacobian's pushforward)."""
+        J, r = jax.jacfwd(lambda x: (self.residuals(x, mask),) * 2, has_aux=True)(z)
+        return r, J
+
+
+def _model_instance(pb: Problem):
+    """The model instance of the fit, with its dashpot coefficient as an array (a Python
+    float would be static under `eqx.filter_jit`: a compile per value)."""
+    model = pb.fit_model.model
+    if pb.fit_model.has_dashpots:
+        c_f = jnp.asarray(float(pb.values0["c_f"]))
+        model = eqx.tree_at(lambda m: m.damping, model, c_f)
+    return model
+
+
+@contextlib.contextmanager
+def _checks_as_nan():
+    """Trace equinox's runtime checks (`eqx.error_if`, used by diffrax) in their "nan"
+    mode: a failed check makes the simulation NaN (a bad point of the fit: large
+    residuals) instead of raising through a host callback. A program with host callbacks
+    is never written to JAX's persistent compilation cache, so without this every new
+    process (`rockjax fit`) compiles the fit again. Affects only what is traced inside."""
+    errors = sys.modules.get("equinox._errors")
+    old = getattr(errors, "EQX_ON_ERROR", None)
+    if old is None:  # another equinox: leave it as it is
+        yield
+        return
+    errors.EQX_ON_ERROR = "nan"
+    try:
+        yield
+    finally:
+        errors.EQX_ON_ERROR = old
+
+
+def compiled(out_structure):
+    """Decorator: `eqx.filter_jit(fn)`, traced with `_checks_as_nan` (see there); its
+    programs are kept on disk when JAX's persistent compilation cache is on
+    (`_aot.persisted`; `out_structure(*args)`: the pytree structure of its output)."""
+
+    def wrap(fn):
+        jitted = _aot.persisted(fn, out_structure)
+
+        @functools.wraps(fn)
+        def call(*args):
+            with _checks_as_nan():
+                return jitted(*args)
+
+        return call
+
+    return wrap
+
+
+@functools.cache
+def response_structure():
+    """The pytree structure of a `rockjax.Response` (of one run, or of several)."""
+    names = [f.name for f in dataclasses.fields(rockjax.Response)]
+    return jax.tree.structure(rockjax.Response(**dict.fromkeys(names, 0.0)))
+
+
+@compiled(lambda model, z: response_structure())
+def respond(model: TraceModel, z):
+    """`model.respond(z)`, compiled."""
+    return model.respond(z)
+
+
+def channels(pb: Problem, response) -> list:
+    """Unmasked residual arrays of a response (numpy), one per fitted channel."""
+    out = [(np.asarray(response.u) - pb.u_meas) / pb.scale]
+    if pb.fits_uplift:
+        out.append(pb.uplift_weight * (np.asarray(response.uplift) - pb.up_meas) / pb.scale)
+    return out
+

@@ -1,0 +1,122 @@
+"""What the fit tells: standard errors, identifiability and the lack-of-fit check.
+
+Standard errors and correlations come from the Gauss-Newton approximation of the Fisher
+information at the optimum (`uncertainty`: a sandwich over the channels); `identifiability`
+gives the sensitivity of the trace to each parameter and the messages of the
+`IdentifiabilityWarning`s; they hold only if the residuals are noise, which the lack-of-fit
+check (`lack_of_fit`, `identification._lack`) tests.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from . import _lack, _models
+from ._problem import Problem
+from ._stages import Best
+from ._transforms import Transform
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Uncertainty:
+    values: dict  # natural values of all of PARAM_NAMES at the optimum
+    derivatives: list  # d(natural value)/dz of each fitted parameter
+    se: np.ndarray  # standard errors (natural units)
+    corr: np.ndarray  # correlation matrix
+    sigma: float  # estimated noise std of the displacement [m]
+
+
+def uncertainty(problem: Problem, transform: Transform, best: Best,
+                keep: np.ndarray) -> Uncertainty:
+    """Standard errors and correlations at the optimum (Gauss-Newton / Fisher information).
+
+    In natural coordinates. The fit minimises unweighted least squares over the channels
+    (displacement, uplift), whose noise levels differ, so the covariance is the sandwich
+    A^-1 B A^-1 with A = J^T J, B = J^T diag(sigma_c^2) J and sigma_c^2 = RSS_c / (N_c - P
+    share) for each channel.
+    """
+    J, r = best.J, best.r
+    n_res, n_par = J.shape
+    n_u = problem.t.size
+    channels = [slice(0, n_u)] + ([slice(n_u, n_res)] if n_res > n_u else [])
+    var = np.empty(n_res)
+    sig2 = []
+    for ch in channels:
+        n_c = int(np.count_nonzero(keep))  # samples in the fit, per channel
+        dof_c = max(n_c - n_par / len(channels), 1.0)
+        s2 = max(float(np.sum(r[ch] ** 2)) / dof_c, 1e-300)
+        sig2.append(s2)
+        var[ch] = s2
+    sigma2 = sig2[0]
+    vals_nat = transform.decode(best.z)
+    dtheta_dz = transform.derivatives(best.z)
+    D = np.diag(dtheta_dz)
+    try:
+        a_inv = np.linalg.inv(J.T @ J)
+        cov = D @ (a_inv @ (J.T @ (var[:, None] * J)) @ a_inv) @ D
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        corr = cov / np.outer(np.where(se > 0, se, 1.0), np.where(se > 0, se, 1.0))
+    except np.linalg.LinAlgError:
+        se = np.full(n_par, np.inf)
+        corr = np.full((n_par, n_par), np.nan)
+    return Uncertainty(values=vals_nat, derivatives=dtheta_dz, se=se, corr=corr,
+                        sigma=math.sqrt(sigma2) * problem.scale)
+
+
+def identifiability(problem: Problem, best: Best, unc: Uncertainty):
+    """(the `FitResult.identifiability` dict, the messages of the IdentifiabilityWarning's).
+
+    The sensitivity of a parameter is the RMS change of the displacement trace [m] for a
+    1 % change of it (t0: for 1 ms), to compare with the noise level.
+    """
+    params, vals_nat, se, sigma = problem.params, unc.values, unc.se, unc.sigma
+    Ju = best.J[:problem.t.size] * problem.scale  # d u / d z [m]
+    sens = {}
+    for j, p in enumerate(params):
+        per = 0.01 * abs(vals_nat[p]) if p != "t0" else 1e-3
+        sens[p] = float(np.sqrt(np.mean((Ju[:, j] / unc.derivatives[j] * per) ** 2)))
+    ident = {
+        "sensitivity_per_percent": sens,
+        "noise_sigma": sigma,
+        "relative_stderr": {p: float(se[j] / abs(vals_nat[p])) if vals_nat[p] else None
+                            for j, p in enumerate(params)},
+    }
+    for other in ("r", "c_f"):
+        if "k_f" in params and other in params:
+            ident[f"corr_k_f_{other}"] = float(unc.corr[params.index("k_f"),
+                                                        params.index(other)])
+    messages = []
+    for j, p in enumerate(params):
+        rel = se[j] / abs(vals_nat[p]) if vals_nat[p] else np.inf
+        if sens[p] == 0.0:  # an exactly zero Jacobian column
+            messages.append(
+                f"the trace does not pin {p} down: it does not depend on {p} at all "
+                f"(nothing in this trace, or in the {problem.fit_model.describe()} model, "
+                f"brings {p} into play: an impact for r, say); leave it out of params"
+            )
+        elif p != "t0" and not rel < 0.1:
+            messages.append(
+                f"the trace does not pin {p} down: standard error {100 * rel:.3g} % of its "
+                f"value (a 1 % change moves the trace by {sens[p]:.3g} m RMS, noise "
+                f"{sigma:.3g} m)"
+            )
+    for other in ("r", "c_f"):
+        rho = ident.get(f"corr_k_f_{other}", 0.0)
+        if abs(rho) > 0.95:
+            messages.append(
+                f"k_f and {other} are strongly correlated (rho = {rho:.3f}): the trace "
+                "constrains a combination of them, not each"
+            )
+    return ident, messages
+
+
+def lack_of_fit(problem: Problem, u_fit: np.ndarray, keep: np.ndarray) -> dict:
+    """The lack-of-fit check of the displacement residuals (kept samples, time order)."""
+    e = (u_fit - problem.u_meas)[keep]
+    rms = float(np.sqrt(np.mean(e**2)))
+    fm = problem.fit_model
+    return _lack.lack_of_fit(e, rms, problem.scale, fm.describe(),
+                             _models.models_above(fm, problem.params))

@@ -27,7 +27,7 @@ from . import pulses as _pulses
 from ._batch import _devices, _Plan, _progress, _run_chunks
 from ._response import STATUS
 from ._structure import FIELDS, RockingStructure
-from .integrators import StepperConfig
+from .integrators import max_pieces_for, StepperConfig
 from .models import get_model
 
 #: substep length cap for the springs: omega h <= 0.5 (RK4 refuses omega h > 2.5)
@@ -207,7 +207,7 @@ def _runner(structure, model, kind, T, t_free, substeps, devices, n_members, r):
     n_steps = int(np.max(np.ceil(t_end / dt - 1e-9)))
     cfg = StepperConfig(method="rk4", substeps=substeps, n_steps=n_steps, forced=True,
                         full=False, max_impacts=_MAX_IMPACTS,
-                        max_pieces=model.default_max_pieces(), rtol=1e-8, atol=1e-10)
+                        max_pieces=max_pieces_for(model), rtol=1e-8, atol=1e-10)
     n_dev = _devices(devices)
     plan = _Plan(model=model, method="rk4", free=False, dt_rec=float(dt.max()),
                  t1=float(t_end.max()), grid=None, cfg=cfg, n_devices=n_dev,

@@ -166,3 +166,11 @@ def test_spectrum_amplitude_rtol_keeps_its_old_name():
         rockjax.overturning_spectrum(S, "sine", [1.0], amplitude_rtol=0.02, rtol=0.01)
     with pytest.raises(ValueError, match="rtol must lie in"):
         rockjax.overturning_spectrum(S, "sine", [1.0], amplitude_rtol=0.5)
+
+
+def test_keywords_given_as_none_are_not_given():
+    from rockjax.integrators._keywords import from_keywords
+
+    it = I.EventRestart()
+    assert from_keywords(it, {"substeps": None, "dt": None}, defaults={}, default="rk4",
+                         where="simulate_batch") is it

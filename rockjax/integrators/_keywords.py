@@ -52,11 +52,13 @@ def from_keywords(integrator, keywords, *, defaults, default, where):
     - `default`: the `method` when none is given; `where`: the entry point's name.
 
     A keyword that contradicts `integrator=` raises `ValueError` naming it; keywords that
-    do not apply to the chosen method are ignored, as they always were.
+    do not apply to the chosen method are ignored, as they always were, and so is a
+    keyword given as None.
     """
     unknown = sorted(set(keywords) - set(KEYWORDS))
     if unknown:
         raise TypeError(f"{where}() got an unexpected keyword argument {unknown[0]!r}")
+    keywords = {k: v for k, v in keywords.items() if v is not None}  # None: not given
     if integrator is not None:
         if not isinstance(integrator, AbstractIntegrator):
             raise ValueError(
@@ -79,6 +81,4 @@ def from_keywords(integrator, keywords, *, defaults, default, where):
                    substeps=keywords.get("substeps"), max_steps=keywords.get("max_steps", 1))
     fields = {f.name for f in dataclasses.fields(base)}
     given = {k: v for k, v in keywords.items() if k in fields}
-    if "solver" in given and given["solver"] is None:
-        given.pop("solver")
     return dataclasses.replace(base, **given)

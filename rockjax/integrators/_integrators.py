@@ -57,8 +57,8 @@ class AbstractIntegrator(eqx.Module):
 
     @abc.abstractmethod
     def solve(self, model, structure, excitation, t1, ts, r) -> dict:
-        """One run of `model` from t = 0 to `t1` [s], outputs on `ts` [s] (or None: the
-        integrator's own grid).
+        """One run of `model` from t = 0 to `t1` [s], outputs on `ts` [s] (the steppers
+        also take None: their own grid).
 
         `structure` is a `RockingStructure`, `excitation` a `FreeVibration` or
         `GroundMotion`, `r` the coefficient of restitution. Returns a dict: `ts`, and u,
@@ -123,6 +123,8 @@ class EventRestart(AbstractIntegrator):
         )
 
     def solve(self, model, structure, excitation, t1, ts, r):
+        if ts is None:
+            raise ValueError("ts must be given: EventRestart outputs on the times it is given")
         dtype = jnp.result_type(structure.B)
         ts = jnp.asarray(ts, dtype)
         out = _restart_solve(model, structure, excitation, jnp.asarray(t1, dtype), ts,

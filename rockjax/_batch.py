@@ -1,12 +1,12 @@
 r"""Batches of simulations: `rockjax.simulate_batch`, chunked, sharded and with progress.
 
-Every model runs on three integrators (`rockjax.integrators`):
+Every model runs on three integrators (`rockjax.integrators`, passed as `integrator=`):
 
-- `"rk4"` (default): the batched stepper, classical RK4 on the record's grid (`substeps`
+- `RK4()` (default): the batched stepper, classical RK4 on the record's grid (`substeps`
   per record interval) with every event located inside its step;
-- `"dopri5"`: the same loop with Dormand–Prince 5(4) steps under error control (`rtol`,
+- `Dopri5()`: the same loop with Dormand–Prince 5(4) steps under error control (`rtol`,
   `atol`), for a full time history at a set tolerance;
-- `"diffrax"`: the event-restart diffrax solve under `jax.vmap`.
+- `EventRestart()`: the event-restart diffrax solve under `jax.vmap`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ import functools
 import math
 import sys
 
-import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -26,9 +25,7 @@ from ._checks import (
     check_end_time,
     check_float64,
     check_scene,
-    check_settings,
     check_ts,
-    default_substeps,
     stepper_grid_step,
 )
 from ._config import ensure_x64
@@ -38,13 +35,29 @@ from ._excitation import FreeVibration, GroundMotion, PaddedGroundMotion
 from ._fidelity import warn_sdof_lift_off
 from ._records import common_time_step, on_grid, Record
 from ._response import Response
-from ._simulate import resample_outputs
 from ._status import STATUS_NAMES
 from ._structure import FIELDS, RockingStructure
-from .integrators import RestartConfig, run, solve, StepperConfig
+from .integrators import (
+    AbstractIntegrator,
+    Dopri5,
+    EventRestart,
+    from_keywords,
+    resample_outputs,
+    RK4,
+    run,
+    solve,
+)
 from .models import get_model
 
 METHODS = ("rk4", "dopri5", "diffrax")
+#: `simulate_batch`'s integrator for each `method=` of the keyword form: `RK4` by default,
+#: `Dopri5` and `EventRestart` (forward mode, as batches need no reverse gradient) at
+#: rtol 1e-8, atol 1e-10
+DEFAULT_INTEGRATORS = {
+    "rk4": RK4(),
+    "dopri5": Dopri5(rtol=1e-8, atol=1e-10),
+    "diffrax": EventRestart(rtol=1e-8, atol=1e-10, adjoint="forward"),
+}
 #: free vibration [s] after each record's end when the records of a batch are a sequence
 DEFAULT_TAIL = 5.0
 
@@ -412,20 +425,15 @@ def simulate_batch(
     record=None,
     model="simplified",
     impact="paper",
-    method="rk4",
-    substeps=None,
-    dt=None,
-    rtol=1e-8,
-    atol=1e-10,
+    integrator: AbstractIntegrator | None = None,
     ts=None,
     summary_only=False,
-    max_impacts=1024,
-    max_pieces=None,
     chunk_size=None,
     devices=None,
     progress=None,
     fidelity_warning=True,
     record_steps="common",
+    **keywords,
 ):
     r"""Many simulations of Eq. 1 at once: any mix of structures, r, u0, v0, scales, records.
 
@@ -458,25 +466,23 @@ def simulate_batch(
       (`"two_spring_2dof"`) included. Several records of one time step may also go in
       one `GroundMotion` with `accel` of shape (n_records, n_samples), zero-padded, with
       one `t1` for all (the padding then counts as ground motion at rest).
-    - `method`: `"rk4"` (default) fixed steps of the record's dt / `substeps` with events
-      located inside each step (the fast path); `"dopri5"`: adaptive Dormand–Prince 5(4)
-      steps to `rtol`, `atol` inside the same loop; `"diffrax"`: `rockjax.simulate` under
-      `vmap` (every member waits for the slowest).
-    - `substeps`: RK4 steps per record interval (default 4; for a free vibration, steps per
-      `dt`, default 1). With `"dopri5"` it only caps the step size (default 1). Accuracy
-      against speed: the peak-u error falls about 16x per halving of the step; on El
-      Centro x1.0 it is about 1e-5, 1e-6, 1e-7 for 1, 2, 4, and over scales 0.1-2.0
-      (near overturning the response is more sensitive) at worst 1e-3, 3e-4, 2e-5
-      (`benchmarks/results.md`).
-    - `dt` [s]: the step (and output grid) of a free vibration with `"rk4"`/`"dopri5"`
-      (default min(t1 / 4000, 10 ms)).
+    - `integrator`: an object of `rockjax.integrators` holding its settings.
+      `RK4(substeps=...)` (default `RK4()`): fixed steps of the record's dt / `substeps`
+      (default 4; for a free vibration steps of `dt`, default min(t1 / 4000, 10 ms), which
+      is also the output grid) with events located inside each step, the fast path;
+      accuracy against speed: the peak-u error falls about 16x per halving of the step;
+      on El Centro x1.0 it is about 1e-5, 1e-6, 1e-7 for `substeps` 1, 2, 4, and over
+      scales 0.1-2.0 (near overturning the response is more sensitive) at worst 1e-3,
+      3e-4, 2e-5 (`benchmarks/results.md`); `max_pieces`, event-localised pieces per
+      step, defaults from the model (4, 32 for the rigid `housner` model, whose settling
+      impacts crowd, 8 for the 2-DOF body). `Dopri5(rtol=..., atol=...)`: adaptive
+      Dormand–Prince 5(4) steps inside the same loop (`substeps` then only caps the step).
+      `EventRestart(...)`: `rockjax.simulate`'s default under `vmap` (every member waits
+      for the slowest).
     - `ts` [s]: output times (full responses only). Fast methods compute the response on
       their grid and interpolate (cubic Hermite) to `ts`.
     - `summary_only`: return a `Summary` (peak_u, peak_uplift, n_impacts, status,
       t_overturn, t_end) and store no time history.
-    - `max_pieces`: event-localised pieces per step (default 4 for rk4, 32 for the rigid
-      `housner` model, whose settling impacts crowd, 8 for the 2-DOF body; 4096 for
-      dopri5).
     - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
       padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
       or as many full responses as fit in about 256 MB.
@@ -495,6 +501,11 @@ def simulate_batch(
       summaries only, `"rk4"`/`"dopri5"`. The steps of the longest run over every record
       of the sequence fix the compiled program, so calls on the same records with other
       `record`/`scale` (and a `chunk_size` dividing N) reuse it.
+    - `**keywords`: the keyword form of earlier versions, still accepted: `method=`
+      (`"rk4"`, `"dopri5"`, `"diffrax"`) with `substeps`, `dt`, `rtol`, `atol`,
+      `max_impacts`, `max_pieces` (and `simulate`'s `solver`, `max_steps`, `adjoint`,
+      `jump_ts`): they build the integrator (`"dopri5"` and `"diffrax"` at rtol 1e-8,
+      atol 1e-10); one that contradicts `integrator=` raises `ValueError` naming it.
 
     **Returns:** a `Summary`, or a `Response` whose arrays have a leading batch axis of
     length N (`impact_times` has shape (N, max_impacts)); on the grid past a run's own end
@@ -516,38 +527,39 @@ def simulate_batch(
     ```
     """
     ensure_x64()
-    if method not in METHODS:
+    method = keywords.get("method")
+    if method is not None and method not in METHODS:
         raise ParameterError(f"method must be one of {METHODS}, got {method!r}", param="method")
-    check_settings(method=method, rtol=rtol, atol=atol, max_impacts=max_impacts, dt=dt,
-                   substeps=substeps)
+    integrator = from_keywords(integrator, keywords, defaults=DEFAULT_INTEGRATORS,
+                               default="rk4", where="simulate_batch")
     model = get_model(model, impact)
     if isinstance(excitation, Record):  # one record, e.g. rockjax.datasets.el_centro()
         excitation = GroundMotion.from_record(excitation)
     N, members, table, free, suite = _resolve(structure, excitation, scale, r, u0, v0, record,
                                               t1, tail, record_steps)
-    if record_steps == "own" and (not summary_only or method == "diffrax"):
+    if record_steps == "own" and (not summary_only or integrator.method == "diffrax"):
         raise ValueError('record_steps="own" runs summaries only (summary_only=True) on '
                          '"rk4" or "dopri5"')
     t_last = float(np.max(members["t_end"]))
     dtype = jnp.result_type(structure.B)
-    check_float64(method, dtype)
+    check_float64(integrator.method, dtype)
     check_ts(ts, t_last, summary_only)
     # each record's samples: the ground acceleration is zero after the last one
     lengths = None if free else (suite.lengths if suite is not None else
                                  np.full(table.shape[0], table.shape[1]))
     ends = None if suite is None or suite.steps is None else _suite_ends(  # every record's
         suite, np.arange(len(suite.steps)), t1, tail)
-    dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last, dt,
-                                ends)
+    dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last,
+                                integrator.dt, ends)
     if devices is None:
         advise_configure()
     n_dev = _devices(devices)
     n_out = len(grid) if ts is None else len(ts)
-    chunk = _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev)
+    chunk = _chunk(chunk_size, summary_only, n_out, integrator.max_impacts, N, n_dev)
     plan = _Plan(
-        model=model, method=method, free=free, dt_rec=dt_rec, t1=t_last, grid=grid,
-        cfg=_config(model, method, free, len(grid) - 1, summary_only, max_impacts,
-                    max_pieces, substeps, rtol, atol),
+        model=model, method=integrator.method, free=free, dt_rec=dt_rec, t1=t_last,
+        grid=grid, cfg=integrator.config(model, forced=not free, n_steps=len(grid) - 1,
+                                         full=not summary_only),
         n_devices=n_dev, chunk=chunk,
     )
     names, values, shared = _split(members, structure, N, dtype)
@@ -611,26 +623,6 @@ def _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev):
     return n_dev * math.ceil(equal / n_dev)
 
 
-def _config(model, method, free, n_steps, summary_only, max_impacts, max_pieces, substeps,
-            rtol, atol):
-    """The integrator's static settings."""
-    if method == "diffrax":
-        return RestartConfig(
-            solver=dfx.Tsit5(), rtol=float(rtol), atol=float(atol), max_steps=16384,
-            max_impacts=max_impacts, adjoint="forward", use_jump_ts=True, dt=None,
-        )
-    if max_pieces is None:
-        max_pieces = model.default_max_pieces() if method == "rk4" else 4096
-    if not (isinstance(max_pieces, int) and max_pieces >= 2):
-        raise ParameterError(f"max_pieces must be an integer >= 2, got {max_pieces!r}",
-                             param="max_pieces")
-    return StepperConfig(
-        method=method, substeps=default_substeps(substeps, free, method), n_steps=n_steps,
-        forced=not free, full=not summary_only, max_impacts=max_impacts,
-        max_pieces=max_pieces, rtol=float(rtol), atol=float(atol),
-    )
-
-
 def _per_member(fn, structure, x, N):
     """fn(structure, x) with structure fields of shape (N,) lined up with x's first axis."""
     fields = {}
@@ -655,7 +647,7 @@ def _assemble(plan, res, structure, N, ts, summary_only, t_end):
     out = {k: res[k] for k in ("u", "v", "theta", "uplift", "impact_times")}
     out_ts = plan.grid if ts is None else np.asarray(ts, float)
     if plan.method != "diffrax" and ts is not None:
-        out = resample_outputs(plan.grid, out, out_ts, lambda u: _per_member(
+        out = resample_outputs(plan.model, plan.grid, out, out_ts, lambda u: _per_member(
             plan.model.theta_uplift_of_u, structure, jnp.asarray(u), N))
     return Response(ts=jnp.asarray(out_ts), **{k: jnp.asarray(v) for k, v in out.items()},
                     **{f.name: getattr(summary, f.name) for f in dataclasses.fields(summary)

@@ -142,8 +142,8 @@ def exceedances(result: SweepResult, kind, threshold=None) -> np.ndarray:
     if kind == "uplift":
         return over | (result.peak_uplift >= threshold)
     m = get_model(result.model, result.impact)
-    pair = m.theta_uplift_of_u(result.structure, jnp.asarray(result.peak_u))
-    theta = theta_from_u(result.structure, result.peak_u) if pair is None else pair[0]
+    theta = (m.theta_uplift_of_u(result.structure, jnp.asarray(result.peak_u))[0]
+             if m.kinematics_of_u else theta_from_u(result.structure, result.peak_u))
     return over | (np.abs(np.asarray(theta)) >= threshold)
 
 

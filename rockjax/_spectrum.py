@@ -313,9 +313,21 @@ def _failed(status):
     return int(failed_runs(status))
 
 
+def _amplitude_rtol(amplitude_rtol, rtol):
+    """`amplitude_rtol`, or `rtol`, its earlier name (not both, unless they agree)."""
+    if rtol is None or rtol == amplitude_rtol:
+        return amplitude_rtol
+    if amplitude_rtol != 1e-3:
+        raise ParameterError(
+            f"rtol={rtol!r} contradicts amplitude_rtol={amplitude_rtol!r}: rtol is the "
+            "earlier name of amplitude_rtol, give one", param="amplitude_rtol")
+    return rtol
+
+
 def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact="paper",
-                         rtol=1e-3, r=None, n_scan=48, max_ratio=1000.0, t_free=None,
-                         substeps=4, devices=None, progress=None) -> OverturningSpectrum:
+                         amplitude_rtol=1e-3, r=None, n_scan=48, max_ratio=1000.0,
+                         t_free=None, substeps=4, devices=None, progress=None,
+                         rtol=None) -> OverturningSpectrum:
     r"""The lowest amplitude [m/s²] of a pulse that overturns `structure`, per period.
 
     **Arguments:**
@@ -327,7 +339,8 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact
     - `model`: a model of the fidelity ladder (default `"rigid_body"`, the body's own
       equation: `docs/models.md`), `impact` its impact rule (the SDOF models, as in
       `rockjax.simulate`); `r`: the restitution (default the structure's, Eq. 3).
-    - `rtol`: the relative width of the final bracket (default 1e-3).
+    - `amplitude_rtol`: the relative width of the final amplitude bracket (default 1e-3;
+      `rtol=`, its earlier name, is still accepted).
     - `n_scan`: amplitudes per period in the first scan (default 48; an overturning range
       narrower than the scan's step, about 11 %, below the lowest one found can be
       missed); `max_ratio`: give up above `max_ratio` $g\tan\alpha$ (NaN).
@@ -341,6 +354,7 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact
     """
     ensure_x64()
     start = time.perf_counter()
+    rtol = _amplitude_rtol(amplitude_rtol, rtol)
     check_one_structure(structure, "a spectrum is computed for one structure at a time")
     if kind not in _pulses.KINDS:
         raise ParameterError(f"kind must be one of {sorted(_pulses.KINDS)}, got {kind!r}",

@@ -156,8 +156,8 @@ def no_integration(monkeypatch):
         raise AssertionError("an integration started: the bad input was not rejected first")
 
     for module, name in (
-        ("rockjax._simulate", "solve"),
-        ("rockjax._simulate", "_run_jit"),
+        ("rockjax.integrators._integrators", "_restart_solve"),
+        ("rockjax.integrators._integrators", "_run_jit"),
         ("rockjax._batch", "_stepper_chunk_jit"),
         ("rockjax._batch", "_diffrax_chunk_jit"),
         ("rockjax._plotting", "pushover_curves"),

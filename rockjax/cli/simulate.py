@@ -143,9 +143,8 @@ UNITS = {
 def _peak_theta(s, res, model, t_overturn):
     """The peak rotation [rad]: from the exact peak |u| where the model maps u to theta
     (the SDOF models), else the largest |theta| on the output grid up to overturning."""
-    mapped = model.theta_uplift_of_u(s, res.peak_u)
-    if mapped is not None:
-        return abs(float(mapped[0]))
+    if model.kinematics_of_u:
+        return abs(float(model.theta_uplift_of_u(s, res.peak_u)[0]))
     ts, theta = np.asarray(res.ts), np.abs(np.asarray(res.theta))
     keep = ts <= t_overturn if t_overturn is not None else np.ones(ts.shape, bool)
     return float(np.max(theta[keep]))

@@ -61,6 +61,8 @@ class StepperConfig(eqx.Module):
     max_pieces: int = eqx.field(static=True)
     rtol: float = eqx.field(static=True)
     atol: float = eqx.field(static=True)
+    #: None: the model's `recrossing_conditions`
+    grazing_roots: bool | None = eqx.field(static=True, default=None)
 
 
 class Member(eqx.Module):
@@ -154,8 +156,8 @@ def locate(model, cfg, s, y, mode, tau, h, a0, da, tr, fire):
     """
     # a condition that leaves its surface at a jump and crosses it again later in the
     # step (rigid_body: a landing, then the lift-off on the other corner) is located at
-    # the crossing, where the model asks for it (`grazing_roots`)
-    gr = model.grazing_roots
+    # the crossing, where the model asks for it (`recrossing_conditions`)
+    gr = model.recrossing_conditions if cfg.grazing_roots is None else cfg.grazing_roots
     lin = jnp.where(fire, root_estimate(tr.g0, tr.dg0 * h, tr.g1, tr.dg1 * h, gr), 2.0)
     which = jnp.argmin(lin).astype(jnp.int32)
     root = hermite_root(tr.g0[which], tr.dg0[which] * h, tr.g1[which], tr.dg1[which] * h,

@@ -52,7 +52,8 @@ class AbstractRockingModel(eqx.Module):
     `[u, v]`, for the 2-DOF body the corner heights and their rates), the mode a pytree of
     scalars. `a_g` [m/s²] is the ground acceleration at that instant.
 
-    Subclasses implement the abstract methods and may override the defaults below.
+    Abstract: a model is a final subclass that implements every abstract method and
+    declares the class data below (equinox's abstract/final pattern).
     """
 
     @abc.abstractmethod
@@ -92,31 +93,36 @@ class AbstractRockingModel(eqx.Module):
     def u_overturn(self, structure):
         """|u| [m] at which the body overturns."""
 
+    @abc.abstractmethod
     def tracked_uplift(self, structure, y, mode):
-        """The uplift [m] the integrators track for the peak (default: the observed)."""
-        return self.observe(structure, y, mode).uplift
+        """The uplift [m] the integrators track for the peak (the observed uplift, or 0
+        where the peak uplift follows from the peak |u|: `peak_uplift`)."""
 
-    def theta_uplift_of_u(self, structure, u):
-        """(theta [rad], uplift [m]) as functions of u [m] where the model has them (the
-        SDOF kinematics), for output times between grid points; default None."""
-        return None
-
-    #: whether a condition that starts on its surface right after a jump and leaves it may
-    #: fire again later in the same step as a different event (the stepper then locates its
-    #: root past the interpolant's maximum, not at the jump). True for `RigidBody`, whose
-    #: landing condition crosses zero again at the lift-off on the other corner; the SDOF
-    #: models keep False: their condition's return is the next impact at u = 0 of a
-    #: settling rigid block, collapsed onto the jump when it comes within one step
-    grazing_roots = False
-
-    def default_max_pieces(self) -> int:
-        """Event-located pieces the fixed-step stepper allows per step (default 4)."""
-        return 4
-
+    @abc.abstractmethod
     def peak_uplift(self, structure, peak_u, tracked):
         """The run's peak uplift [m] from its peak |u| [m] and the largest uplift the
-        integrator saw at its step ends (`tracked`). Default: `tracked`."""
-        return tracked
+        integrator saw at its step ends (`tracked`)."""
 
-    def check(self, structure, excitation) -> None:
-        """Raise `ValueError` naming the parameter if the model cannot run this scene."""
+    @abc.abstractmethod
+    def theta_uplift_of_u(self, structure, u):
+        """(theta [rad], uplift [m]) as functions of u [m], for output times between grid
+        points; only where `kinematics_of_u` (else it raises `NotImplementedError`)."""
+
+    #: whether theta and uplift are functions of u alone (`theta_uplift_of_u`)
+    kinematics_of_u: eqx.AbstractClassVar[bool]
+    #: whether a condition that starts on its surface right after a jump and leaves it may
+    #: cross it again later in the same step as a different event: True for `RigidBody`,
+    #: whose landing condition crosses zero again at the lift-off on the other corner; the
+    #: SDOF models keep False: their condition's return is the next impact at u = 0 of a
+    #: settling rigid block, collapsed onto the jump when it comes within one step. The
+    #: stepper's default for its `grazing_roots` setting.
+    recrossing_conditions: eqx.AbstractClassVar[bool]
+    #: contacts whose events are independent of each other (the 2-DOF body's two corners:
+    #: 2; the SDOF and the rigid body: 1), for the events a step may hold
+    contacts: eqx.AbstractClassVar[int]
+
+    @property
+    @abc.abstractmethod
+    def impacts_accumulate(self) -> bool:
+        """Whether the impacts of a settling body accumulate (Housner's rigid block:
+        infinitely many in a finite time), crowding a step with events."""

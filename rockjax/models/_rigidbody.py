@@ -33,6 +33,8 @@ Events, in the order of `RigidBody.conditions`:
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -168,12 +170,12 @@ class RigidBody(AbstractRockingModel):
     """
 
     #: a landing and the lift-off on the other corner may share a step (stiff springs)
-    grazing_roots = True
-
-    def default_max_pieces(self) -> int:
-        # a landing and the next lift-off may share a step when theta_u is small: 4
-        # pieces hold landing, lift-off and a third event (as for the SDOF models)
-        return 4
+    recrossing_conditions: ClassVar[bool] = True
+    kinematics_of_u: ClassVar[bool] = True
+    # a landing and the next lift-off may share a step when theta_u is small: 4 pieces
+    # hold landing, lift-off and a third event (as for the SDOF models)
+    contacts: ClassVar[int] = 1
+    impacts_accumulate: ClassVar[bool] = False
 
     def init(self, structure, u0, v0, first, forced):
         s = structure

@@ -14,6 +14,8 @@ rigid `Housner` law under a ground motion, resting on the ground. Events, in the
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -73,9 +75,14 @@ class SDOF(AbstractRockingModel):
     def rigid(self) -> bool:
         return self.law.rigid
 
-    def default_max_pieces(self) -> int:
+    kinematics_of_u: ClassVar[bool] = True
+    recrossing_conditions: ClassVar[bool] = False
+    contacts: ClassVar[int] = 1
+
+    @property
+    def impacts_accumulate(self) -> bool:
         # a settling rigid block has many impacts per step; the others a few at most
-        return 32 if self.rigid else 4
+        return self.rigid
 
     def _u_lift(self, s):
         return jnp.zeros_like(s.u_crit) if self.rigid else s.u_crit

@@ -53,6 +53,8 @@ impact rule `"paper"` charges an impact at every crossing of $u = 0$. Dashpots
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -106,8 +108,21 @@ class TwoSpring2DOF(AbstractRockingModel):
         if isinstance(c, (int, float)) and not (c >= 0 and c < float("inf")):
             raise ValueError(f"damping (dashpot coefficient c_f) must be >= 0, got {c}")
 
-    def default_max_pieces(self) -> int:
-        return 8
+    kinematics_of_u: ClassVar[bool] = False  # theta, uplift: of both corners, not u
+    recrossing_conditions: ClassVar[bool] = False
+    contacts: ClassVar[int] = 2  # two corners, each lifting off and landing on its own
+    impacts_accumulate: ClassVar[bool] = False
+
+    def tracked_uplift(self, structure, y, mode):
+        return self.observe(structure, y, mode).uplift
+
+    def peak_uplift(self, structure, peak_u, tracked):
+        return tracked
+
+    def theta_uplift_of_u(self, structure, u):
+        raise NotImplementedError(
+            "the 2-DOF body's theta and uplift are not functions of u (kinematics_of_u)"
+        )
 
     def init(self, structure, u0, v0, first, forced):
         return _initial_state(structure, u0, v0)

@@ -20,6 +20,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 import pathlib
 import sys
 import time
@@ -49,9 +50,11 @@ from ._common import (
     COMMON_FLAGS,
     converter,
     error_text,
+    EXIT_USAGE,
     fidelity_note,
     model_info,
     model_line,
+    parameter_message,
     RECORD_FLAGS,
     record_info,
     record_units,
@@ -608,6 +611,17 @@ def run(args):
     try:
         sweep = _load_sweep(args, cluster)
         _run_batches(args, sweep, cluster)
+    except Exception as e:
+        if not cluster.active:
+            raise
+        # one of several processes failed: leave jax.distributed, say why, and end at once
+        # (a process that returned to the interpreter's exit after a failed run has been
+        # seen to hang there, under load, until killed)
+        cluster.stop()
+        message = (parameter_message(e, FLAGS) if isinstance(e, rockjax.ParameterError)
+                   else _first_line(e))
+        print(f"rockjax sweep: error: {message}", file=sys.stderr, flush=True)
+        os._exit(EXIT_USAGE)
     finally:
         cluster.stop()
     if cluster.index != 0:

@@ -131,6 +131,7 @@ def test_model_mismatch_bias_is_reported():
     assert fit.lack_of_fit["fires"]
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_short_trace_warns_not_crashes():
     # 0.25 s: released and falling, no impact yet: r cannot be identified
     trace, _ = _load("synthetic_decay_clean")

@@ -109,6 +109,7 @@ def test_second_identical_fit_compiles_nothing(joint, traces):
     assert again.values == joint.values
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_a_list_of_one_trace_is_the_single_fit(traces):
     short = traces[2]
     kw = dict(FIT, max_iter=8, horizons=(1.0,))

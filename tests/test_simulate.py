@@ -188,6 +188,7 @@ def grad_setup(column):
     return p, rev, fwd, f
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 @pytest.mark.parametrize("name", ["k_f", "H_e", "m_e", "u0", "r"])
 def test_gradients_match_finite_differences(grad_setup, name):
     p, rev, fwd, f = grad_setup

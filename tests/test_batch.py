@@ -315,6 +315,7 @@ def test_rk4_gradients_match_finite_differences(column):
         np.testing.assert_allclose(rev[:, j], fd, rtol=2e-6, atol=1e-12)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_dopri5_forward_gradient(column):
     def third_impact(k_f):
         res = simulate(column.replace(k_f=k_f), FreeVibration(0.1), 1.5, method="dopri5",

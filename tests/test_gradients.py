@@ -54,7 +54,7 @@ P0 = jnp.asarray([8.0e5, 0.85, 0.1])  # k_f [N/m], r, u0 [m]
 H = np.asarray([80.0, 1e-5, 1e-6])  # central-difference steps
 
 
-@pytest.mark.parametrize("method", ["rk4", "diffrax"])
+@pytest.mark.parametrize("method", ["rk4", pytest.param("diffrax", marks=pytest.mark.slow)])
 def test_loss_gradient(column, trace, method):
     """grad == jacfwd (to rounding) == central differences (to ~1e-6)."""
     loss = _loss(column, trace, method=method)

@@ -164,6 +164,7 @@ def _fd(f, x, h):
     return (-f(x + 2 * h) + 8 * f(x + h) - 8 * f(x - h) + f(x - 2 * h)) / (12 * h)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_gradients_match_finite_differences(column):
     """d/dk_f through lift-off and landing (u0 = 20 mm > u_crit), and d/dc_f of the dashpots
     on small oscillations (u0 = 3 mm: no contact change, so the dashpot never pulls and the

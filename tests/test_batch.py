@@ -423,6 +423,7 @@ def mixed_batch(column, mixed):
                           progress=False)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_mixed_time_steps_equal_single_runs(column, mixed, mixed_batch):
     """One batch over records of 0.005, 0.01 and 0.02 s (resampled exactly onto 0.005 s):
     each member equals `rockjax.simulate` of its record to its own end + tail (before,

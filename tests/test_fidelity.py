@@ -53,6 +53,7 @@ def test_warning_is_silenced_and_quiet_where_the_sdof_fits(column, short_motion)
     assert caught == []
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_no_warning_inside_transformations(column, short_motion):
     """Inside jit or grad the peak is a tracer: nothing to look at, no error."""
     def peak(k_f):

@@ -152,6 +152,7 @@ def test_bad_joint_input_names_the_parameter(traces, case, match):
         fit_decay(*args, **kw)
 
 
+@pytest.mark.slow  # moved out of the default suite (issue 23): compile-bound; CI runs it
 def test_cli_fits_several_files(joint, traces, tmp_path, capsys):
     paths = []
     for i, tr in enumerate(traces):

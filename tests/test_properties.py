@@ -273,7 +273,7 @@ def test_free_vibration_is_finite(case, method):
     assert float(res.peak_u) <= float(s.u_overturn) * (1 + 1e-12)
 
 
-@pytest.mark.parametrize("method", ["diffrax", "rk4"])
+@pytest.mark.parametrize("method", ["diffrax", pytest.param("rk4", marks=pytest.mark.slow)])
 @props(50)
 @given(case=ground_motions(), n_t1=st.integers(50, REC_N - 1))
 def test_ground_motion_is_finite(case, method, n_t1):

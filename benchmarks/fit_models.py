@@ -4,21 +4,9 @@ and whether the lack-of-fit check of `identification.fit_decay` fires.
     python benchmarks/fit_models.py [--traces NAME ...] [--models NAME ...] [--json FILE]
                                     [--optimizer lm|optimistix]
 
-The traces (all SYNTHETIC: rockjax simulations plus Gaussian noise, released at rest from
-u0 = 0.1 m at t = 0, Table 1 geometry and masses):
-
-- `sdof`: the shipped `synthetic_decay_noisy` (simplified SDOF, k_f = 800 kN/m, r = 0.85,
-  8 s at 200 Hz, noise 0.5 mm on u and 0.1 mm on uplift);
-- `2dof_continuous`: the 2-DOF body on its springs with continuous contact and
-  compression-only dashpots at 5 % of critical of the vertical mode, c_f =
-  0.05 sqrt(2 k_f (m_e + m_b)) = 678 N s/m, k_f = 550 kN/m (the trace of issue 14);
-- `2dof_impact`: the 2-DOF body with impact contact (Housner's impact at each landing, r
-  from Eq. 3 = 0.735, no dashpots), k_f = 550 kN/m;
-- `rigid_body`: the body's one-DOF rotational equation (`model="rigid_body"`), k_f = 550
-  kN/m, r from Eq. 3;
-
-the last three 4 s at 100 Hz with noise 0.5 mm on u (no uplift channel), integrated with
-`method="dopri5"` at rtol 1e-10 (the fits integrate with diffrax's Tsit5 at rtol 1e-9).
+The traces are the SYNTHETIC decay traces of the model ladder (`sdof`, `2dof_continuous`,
+`2dof_impact`, `rigid_body`) that `tests/helpers/fit_models.py` makes and describes; the fits
+integrate with diffrax's Tsit5 at rtol 1e-9.
 
 Every fit uses `fit_decay`'s defaults (the model's parameters, starts and horizons) from
 k_f = 2 x the truth, r from Eq. 3 and, for the dashpots, 5 % of critical at that k_f.

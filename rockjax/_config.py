@@ -40,24 +40,26 @@ class Configuration:
 def configure(*, x64: bool = True, cpu_devices="all") -> Configuration:
     """Set JAX up for rockjax, explicitly; call it before any JAX computation.
 
-    Parameters
-    ----------
-    x64 : bool
-        True (default): turn on float64 (``jax_enable_x64``), the default dtype of every
-        result. False: leave it off and opt out of the float64 that the computing entry
-        points would otherwise turn on; float32 then runs where supported
-        (``method="rk4"`` or ``"dopri5"``) and ``method="diffrax"`` raises.
-    cpu_devices : "all", int or None
-        "all" (default): one JAX CPU device per usable core, so that `simulate_batch`
-        uses every core, unless a count was chosen with ``XLA_FLAGS``,
-        ``JAX_NUM_CPU_DEVICES`` or ``ROCKJAX_CPU_DEVICES``; an int: that many; None: leave
-        the count alone. JAX fixes the count when its backend starts: called after a
-        computation, `configure` leaves the count as it is and says so in its result.
+    **Arguments:**
 
-    Returns
-    -------
-    Configuration
-        What it did.
+    - `x64`: True (default): turn on float64 (`jax_enable_x64`), the default dtype of every
+      result. False: leave it off and opt out of the float64 that the computing entry
+      points would otherwise turn on; float32 then runs where supported
+      (`method="rk4"` or `"dopri5"`) and `method="diffrax"` raises.
+    - `cpu_devices`: `"all"` (default): one JAX CPU device per usable core, so that
+      `simulate_batch` uses every core, unless a count was chosen with `XLA_FLAGS`,
+      `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES`; an int: that many; None: leave the
+      count alone. JAX fixes the count when its backend starts: called after a
+      computation, `configure` leaves the count as it is and says so in its result.
+
+    **Returns:** a `Configuration`: what it did.
+
+    **Example:**
+
+    ```python
+    cfg = rockjax.configure()
+    cfg.x64, cfg.devices
+    ```
     """
     if not isinstance(x64, bool):
         raise ParameterError(f"x64 must be True or False, got {x64!r}", param="x64")
@@ -73,8 +75,7 @@ def opted_out() -> bool:
     to a false value while `configure` was not called."""
     if _STATE["x64"] is not None:
         return not _STATE["x64"]
-    return os.environ.get("JAX_ENABLE_X64", "").strip().lower() in _FALSE and (
-        "JAX_ENABLE_X64" in os.environ)
+    return os.environ.get("JAX_ENABLE_X64", "").strip().lower() in _FALSE
 
 
 def ensure_x64() -> None:

@@ -34,7 +34,9 @@ from ._excitation import (
     AbstractExcitation as AbstractExcitation,
     FreeVibration as FreeVibration,
     GroundMotion as GroundMotion,
+    RecordTable as RecordTable,
 )
+from ._execution import Execution as Execution
 from ._fidelity import FidelityWarning as FidelityWarning
 from ._fragility import fragility as fragility, FragilityResult as FragilityResult
 from ._intensity import (

@@ -31,7 +31,8 @@ from ._checks import (
 from ._config import ensure_x64
 from ._devices import advise_configure
 from ._errors import ParameterError
-from ._excitation import FreeVibration, GroundMotion, PaddedGroundMotion
+from ._excitation import FreeVibration, GroundMotion, RecordTable
+from ._execution import Execution
 from ._fidelity import warn_sdof_lift_off
 from ._records import common_time_step, on_grid, Record
 from ._response import Response
@@ -156,7 +157,7 @@ def _suite_item(i, item):
     """(dt [s], samples [m/s²] times the GroundMotion's own scale, name) of one record."""
     if isinstance(item, Record):
         return item.dt, np.asarray(item.accel), item.source or f"record {i}"
-    if not isinstance(item, GroundMotion) or isinstance(item, PaddedGroundMotion):
+    if not isinstance(item, GroundMotion):
         raise ParameterError(
             f"excitation: a sequence must hold Records or GroundMotions, item {i} is a "
             f"{type(item).__name__}", param="excitation"
@@ -297,20 +298,33 @@ def _mesh(n_devices):
     return jax.sharding.Mesh(devices, ("batch",))
 
 
-def _member_structure(vals):
-    return RockingStructure(**{k: vals[k] for k in FIELDS})
+class _Batch(eqx.Module):
+    """A batch as the integrators take it: a `RockingStructure` and a `RecordTable` whose
+    per-member leaves have shape (N,) (one value per member) or () (shared), the
+    coefficient of restitution `r` and each member's end `t_end` [s], likewise."""
+
+    structure: RockingStructure
+    excitation: RecordTable
+    r: jnp.ndarray
+    t_end: jnp.ndarray
+
+    def member_leaves(self):
+        """The same tree with True at the leaves that vary per member (shape (N,))."""
+        exc = self.excitation
+        per = lambda x: jnp.ndim(x) == 1  # noqa: E731
+        table = jax.tree_util.tree_map(lambda _: False, exc)
+        table = eqx.tree_at(lambda e: [getattr(e, k) for k in exc.MEMBER_FIELDS], table,
+                            [per(getattr(exc, k)) for k in exc.MEMBER_FIELDS])
+        return _Batch(structure=jax.tree_util.tree_map(per, self.structure),
+                      excitation=table, r=per(self.r), t_end=per(self.t_end))
 
 
-def _stepper_chunk(model, batched, shared, table, lengths, dt_rec, cfg, n_devices):
+def _stepper_chunk(model, batched, shared, cfg, n_devices):
     """Run one chunk on the batched stepper, split over `n_devices` local devices."""
 
     def kernel(batched):
-        vals = {**shared, **batched}
-        n = next(iter(batched.values())).shape[0]
-        u0, v0 = (jnp.broadcast_to(vals[k], (n,)) for k in ("u0", "v0"))
-        dt = vals.get("dt_rec", dt_rec)  # a grid step per member (pulses of any length)
-        return run(model, _member_structure(vals), table, vals["record"], dt,
-                   vals["scale"], u0, v0, vals["r"], vals["t_end"], cfg, lengths)
+        b = eqx.combine(batched, shared)
+        return run(model, b.structure, b.excitation, b.r, b.t_end, cfg)
 
     if n_devices == 1:
         return kernel(batched)
@@ -322,18 +336,13 @@ def _stepper_chunk(model, batched, shared, table, lengths, dt_rec, cfg, n_device
     return f(batched)
 
 
-def _diffrax_chunk(model, batched, shared, table, lengths, dt_rec, ts, cfg, free):
-    """Run one chunk through the event-restart integrator under `jax.vmap`."""
+def _diffrax_chunk(model, batched, shared, ts, cfg):
+    """Run one chunk through the event-restart integrator under `jax.vmap`: each member
+    a one-run `RecordTable` (its record's row of the shared table, zero past its end)."""
 
-    def one(b):
-        vals = {**shared, **b}
-        if free:
-            exc = FreeVibration(vals["u0"], vals["v0"])
-        else:  # the table is padded: zero after the member's record ends
-            exc = PaddedGroundMotion(dt=dt_rec, accel=table[vals["record"]],
-                                     scale=vals["scale"], u0=vals["u0"], v0=vals["v0"],
-                                     end=dt_rec * (lengths[vals["record"]] - 1))
-        return solve(model, _member_structure(vals), exc, vals["t_end"], ts, vals["r"], cfg)
+    def one(member):
+        b = eqx.combine(member, shared)
+        return solve(model, b.structure, b.excitation, b.t_end, ts, b.r, cfg)
 
     return jax.vmap(one)(batched)
 
@@ -365,43 +374,47 @@ class _Plan:
     chunk: int
 
 
-def _split(members, structure, N, dtype):
-    """(names of the batched inputs, their values, the shared inputs as arrays)."""
-    values = dict(members)
-    values.update({k: getattr(structure, k) for k in FIELDS})
-    batched = [k for k, v in values.items() if np.ndim(v) == 1 and np.shape(v)[0] != 1]
-    shared = {}
-    for k, v in values.items():
-        if k not in batched:
-            a = np.asarray(v)
-            shared[k] = jnp.asarray(a.reshape(()) if a.size == 1 else a,
-                                    jnp.int32 if k == "record" else dtype)
-    if not batched:  # one run: still a batch of N = 1 through the same code
-        batched = ["u0"]
-        values["u0"] = np.reshape(np.asarray(values["u0"]), (1,))
-        shared.pop("u0")
-    return batched, values, shared
+def _batch_inputs(structure, members, table, lengths, plan, N, dtype):
+    """The batch as one `_Batch` pytree: every per-member input an (N,) array if it varies
+    per member, else a scalar (shared: not copied into every member). With no input
+    varying, `u0` gets shape (1,), so one run goes through the same code as N."""
+
+    def member(x, kind=dtype):
+        a = np.asarray(x)
+        if a.ndim == 1 and a.shape[0] == N and N > 1:
+            return jnp.asarray(a, kind)
+        return jnp.asarray(a.reshape(()) if a.size == 1 else a, kind)
+
+    u0 = member(members["u0"])
+    if N == 1:
+        u0 = u0.reshape((1,))
+    excitation = RecordTable(
+        table=jnp.asarray(table, dtype),
+        lengths=jnp.asarray([2] if lengths is None else lengths, jnp.int32),
+        dt=member(members.get("dt_rec", plan.dt_rec)), record=member(members["record"],
+                                                                      jnp.int32),
+        scale=member(members["scale"]), u0=u0, v0=member(members["v0"]), free=plan.free,
+    )
+    return _Batch(structure=jax.tree_util.tree_map(member, structure), excitation=excitation,
+                  r=member(members["r"]), t_end=member(members["t_end"]))
 
 
-def _run_chunks(plan, N, names, values, shared, tables, ts_d, dtype, progress):
+def _run_chunks(plan, N, batch, ts_d, progress):
     """Every chunk through its compiled kernel (the last padded), with a progress bar."""
     n_chunks = math.ceil(N / plan.chunk)
     auto = n_chunks > 1 and sys.stderr.isatty()  # no carriage returns in logs
     bar = _progress(N, progress if progress is not None else auto, f"{plan.method} batch")
+    varying, shared = eqx.partition(batch, batch.member_leaves())
     parts = []
     try:
         for i in range(n_chunks):
             lo = i * plan.chunk
             idx = np.minimum(np.arange(lo, lo + plan.chunk), N - 1)  # pad the last chunk
-            batched = {k: jnp.asarray(np.asarray(values[k])[idx],
-                                      jnp.int32 if k == "record" else dtype) for k in names}
-            dt_rec = jnp.asarray(plan.dt_rec, dtype)
+            chunk = jax.tree_util.tree_map(lambda x: x[idx], varying)
             if plan.method == "diffrax":
-                out = _diffrax_chunk_jit(plan.model, batched, shared, *tables, dt_rec,
-                                         jnp.asarray(ts_d, dtype), plan.cfg, plan.free)
+                out = _diffrax_chunk_jit(plan.model, chunk, shared, ts_d, plan.cfg)
             else:
-                out = _stepper_chunk_jit(plan.model, batched, shared, *tables, dt_rec,
-                                         plan.cfg, plan.n_devices)
+                out = _stepper_chunk_jit(plan.model, chunk, shared, plan.cfg, plan.n_devices)
             n_keep = min(plan.chunk, N - lo)
             parts.append(jax.tree_util.tree_map(lambda x: np.asarray(x)[:n_keep], out))
             if bar is not None:
@@ -417,30 +430,25 @@ def simulate_batch(
     excitation,
     t1=None,
     *,
-    tail=None,
     scale=None,
     r=None,
-    u0=None,
-    v0=None,
     record=None,
+    tail=None,
     model="simplified",
-    impact="paper",
     integrator: AbstractIntegrator | None = None,
     ts=None,
     summary_only=False,
-    chunk_size=None,
-    devices=None,
-    progress=None,
-    fidelity_warning=True,
-    record_steps="common",
+    execution: Execution | None = None,
     **keywords,
 ):
-    r"""Many simulations of Eq. 1 at once: any mix of structures, r, u0, v0, scales, records.
+    r"""Many simulations of Eq. 1 at once: any mix of structures, r, scales, records and
+    initial states.
 
     Each batched input is a 1-D array with one value per run (all of the same length N);
     scalars are shared. Batched inputs are the fields of `structure` (e.g.
-    `structure.replace(k_f=np.linspace(...))`), the keyword arguments `scale`, `r`, `u0`,
-    `v0`, `record`, and the same fields of `excitation`.
+    `structure.replace(k_f=np.linspace(...))`), of `excitation` (`scale`, `u0`, `v0` of a
+    `GroundMotion` or `FreeVibration`, e.g. `FreeVibration(u0=np.linspace(...))`) and the
+    arguments `scale`, `r` and `record`.
 
     Several records, of any time steps and lengths, go in as a sequence
     `excitation=[record, ...]` of `rockjax.Record`s or single-record `GroundMotion`s (whose
@@ -449,23 +457,30 @@ def simulate_batch(
     (`rockjax.common_time_step`: 0.005, 0.01 and 0.02 s give 0.005 s; linear
     interpolation keeps every sample, so the piecewise-linear forcing is unchanged), and
     each run ends at its own record's end plus `tail`: after that nothing counts (no
-    impacts, peaks or status from the padding that the longer records need).
+    impacts, peaks or status from the padding that the longer records need). Inside, every
+    batch becomes one `rockjax.RecordTable` (the records as one table, and per run its
+    record, scale and initial state), the form every integrator consumes.
 
     **Arguments:**
 
+    - `structure`: a `RockingStructure` (SI units), its fields scalars or (N,) arrays.
+    - `excitation`: a `GroundMotion`, a `FreeVibration`, a `rockjax.Record`, or a sequence
+      of records (above). Several records of one time step may also go in one
+      `GroundMotion` with `accel` of shape (n_records, n_samples), zero-padded, with one
+      `t1` for all (the padding then counts as ground motion at rest).
     - `t1` [s]: the end time. Required for one `GroundMotion` or `FreeVibration`; with a
       sequence of records it caps each run's end (default: no cap).
+    - `scale`: factors on the ground acceleration (default the excitation's own `scale`).
+    - `r`: the coefficient of restitution (default the structure's, Eq. 3).
+    - `record`: the index of each run's record (default: one run per record).
     - `tail` [s]: with a sequence of records, the free vibration after each record's end
       (default `DEFAULT_TAIL` = 5 s; the paper's impact rule counts every crossing of
       u = 0, so the free rocking of the tail adds about 7 impacts per second for the
       Table 1 column). `Summary.t_end` gives each run's end.
-    **Arguments:**
-
-    - `structure`, `excitation`, `model`, `impact`, `r`: as `rockjax.simulate` (or a
-      sequence of records, above); every model runs on every method, the 2-DOF body
-      (`"two_spring_2dof"`) included. Several records of one time step may also go in
-      one `GroundMotion` with `accel` of shape (n_records, n_samples), zero-padded, with
-      one `t1` for all (the padding then counts as ground motion at rest).
+    - `model`: as `rockjax.simulate`: a name of the fidelity ladder, a restoring-force law
+      or a model object (an impact rule other than the paper's goes on the model:
+      `rockjax.models.get_model("simplified", "after_uplift")`); every model runs on every
+      integrator, the 2-DOF body (`"two_spring_2dof"`) included.
     - `integrator`: an object of `rockjax.integrators` holding its settings.
       `RK4(substeps=...)` (default `RK4()`): fixed steps of the record's dt / `substeps`
       (default 4; for a free vibration steps of `dt`, default min(t1 / 4000, 10 ms), which
@@ -483,33 +498,26 @@ def simulate_batch(
       their grid and interpolate (cubic Hermite) to `ts`.
     - `summary_only`: return a `Summary` (peak_u, peak_uplift, n_impacts, status,
       t_overturn, t_end) and store no time history.
-    - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
-      padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
-      or as many full responses as fit in about 256 MB.
-    - `devices`: how many local devices to split each chunk over (default: all of
-      `jax.local_devices()`; on a CPU `rockjax.configure()` makes one device per core,
-      unless `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or
-      JAX ran before it: docs/batches.md; without it, a batch on one CPU device of a
-      multi-core machine warns once).
-    - `fidelity_warning`: as `rockjax.simulate` (one warning for the batch, counting the
-      runs that lift off by more than 3 u_crit under the paper's SDOF models).
-    - `progress`: show a tqdm bar on stderr (default: when there is more than one chunk and
-      stderr is a terminal, so logs get no carriage returns).
-    - `record_steps`: with a sequence of records, `"common"` (default: resampled onto their
-      common time step, above) or `"own"`: each run on its own record's samples and step
-      (records of unrelated steps, e.g. pulses of many periods: `overturning_spectrum`);
-      summaries only, `"rk4"`/`"dopri5"`. The steps of the longest run over every record
-      of the sequence fix the compiled program, so calls on the same records with other
-      `record`/`scale` (and a `chunk_size` dividing N) reuse it.
-    - `**keywords`: the keyword form of earlier versions, still accepted: `method=`
-      (`"rk4"`, `"dopri5"`, `"diffrax"`) with `substeps`, `dt`, `rtol`, `atol`,
-      `max_impacts`, `max_pieces` (and `simulate`'s `solver`, `max_steps`, `adjoint`,
-      `jump_ts`): they build the integrator (`"dopri5"` and `"diffrax"` at rtol 1e-8,
-      atol 1e-10); one that contradicts `integrator=` raises `ValueError` naming it.
+    - `execution`: a `rockjax.Execution`: chunk size, devices, progress bar and the
+      records' grid, which change how the batch runs but not its results.
+    - `**keywords`: the keyword form of earlier versions, still accepted: `u0=`, `v0=`
+      (they override the excitation's), `impact=` (the model's impact rule),
+      `chunk_size=`, `devices=`, `progress=`, `record_steps=` (the `Execution`'s),
+      `fidelity_warning=False` (else filter `rockjax.FidelityWarning` with `warnings`:
+      one warning per batch, counting the runs that lift off by more than 3 u_crit under
+      the paper's SDOF models), and `method=` (`"rk4"`, `"dopri5"`, `"diffrax"`) with
+      `substeps`, `dt`, `rtol`, `atol`, `max_impacts`, `max_pieces` (and `simulate`'s
+      `solver`, `max_steps`, `adjoint`, `jump_ts`): they build the integrator
+      (`"dopri5"` and `"diffrax"` at rtol 1e-8, atol 1e-10); one that contradicts
+      `integrator=` raises `ValueError` naming it.
 
     **Returns:** a `Summary`, or a `Response` whose arrays have a leading batch axis of
     length N (`impact_times` has shape (N, max_impacts)); on the grid past a run's own end
     its state is held. Failures come back per member as `status`, never as NaN.
+
+    **Gradients:** a batch is planned on concrete values (its chunks, grid and devices),
+    so `jax.grad` cannot trace through it: a traced input raises a `ParameterError`
+    naming it. Differentiate `rockjax.simulate` (under `jax.vmap` for many runs) instead.
 
     **Example:**
 
@@ -527,14 +535,20 @@ def simulate_batch(
     ```
     """
     ensure_x64()
+    execution = Execution.from_keywords(execution, keywords)
+    u0, v0 = keywords.pop("u0", None), keywords.pop("v0", None)
+    fidelity_warning = keywords.pop("fidelity_warning", True)
+    model = get_model(model, keywords.pop("impact", "paper"))
     method = keywords.get("method")
     if method is not None and method not in METHODS:
         raise ParameterError(f"method must be one of {METHODS}, got {method!r}", param="method")
     integrator = from_keywords(integrator, keywords, defaults=DEFAULT_INTEGRATORS,
                                default="rk4", where="simulate_batch")
-    model = get_model(model, impact)
+    _refuse_tracers(structure=structure, excitation=excitation, t1=t1, scale=scale, r=r,
+                    u0=u0, v0=v0, record=record, tail=tail, ts=ts)
     if isinstance(excitation, Record):  # one record, e.g. rockjax.datasets.el_centro()
         excitation = GroundMotion.from_record(excitation)
+    record_steps = execution.record_steps
     N, members, table, free, suite = _resolve(structure, excitation, scale, r, u0, v0, record,
                                               t1, tail, record_steps)
     if record_steps == "own" and (not summary_only or integrator.method == "diffrax"):
@@ -551,25 +565,35 @@ def simulate_batch(
         suite, np.arange(len(suite.steps)), t1, tail)
     dt_rec, grid, table = _grid(excitation if suite is None else suite, table, free, t_last,
                                 integrator.dt, ends)
-    if devices is None:
+    if execution.devices is None:
         advise_configure()
-    n_dev = _devices(devices)
+    n_dev = _devices(execution.devices)
     n_out = len(grid) if ts is None else len(ts)
-    chunk = _chunk(chunk_size, summary_only, n_out, integrator.max_impacts, N, n_dev)
+    chunk = _chunk(execution.chunk_size, summary_only, n_out, integrator.max_impacts, N, n_dev)
     plan = _Plan(
         model=model, method=integrator.method, free=free, dt_rec=dt_rec, t1=t_last,
         grid=grid, cfg=integrator.config(model, forced=not free, n_steps=len(grid) - 1,
                                          full=not summary_only),
         n_devices=n_dev, chunk=chunk,
     )
-    names, values, shared = _split(members, structure, N, dtype)
-    ts_d = grid if ts is None else np.asarray(ts, float)
-    tables = (jnp.asarray(table, dtype), None if free else jnp.asarray(lengths, jnp.int32))
-    res = _run_chunks(plan, N, names, values, shared, tables, ts_d, dtype, progress)
+    batch = _batch_inputs(structure, members, table, lengths, plan, N, dtype)
+    ts_d = jnp.asarray(grid if ts is None else np.asarray(ts, float), dtype)
+    res = _run_chunks(plan, N, batch, ts_d, execution.progress)
     t_end = np.broadcast_to(np.asarray(members["t_end"], float), (N,))
     out = _assemble(plan, res, structure, N, ts, summary_only, t_end)
     warn_sdof_lift_off(model, structure, not free, out.peak_u, fidelity_warning)
     return out
+
+
+def _refuse_tracers(**inputs):
+    """A clear error for `jax.grad`/`jax.jit` through a batch (planned on concrete values)."""
+    for name, x in inputs.items():
+        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(x)):
+            raise ParameterError(
+                f"{name} is a JAX tracer: simulate_batch plans its chunks, grid and devices "
+                "on concrete values, so jax.grad, jax.jit and jax.vmap cannot trace through "
+                "it; differentiate rockjax.simulate instead (jax.vmap it for many runs, "
+                "integrator=rockjax.integrators.RK4() for the batch's fast path)", param=name)
 
 
 def _grid(excitation, table, free, t1f, dt, ends=None):
@@ -625,13 +649,12 @@ def _chunk(chunk_size, summary_only, n_out, max_impacts, N, n_dev):
 
 def _per_member(fn, structure, x, N):
     """fn(structure, x) with structure fields of shape (N,) lined up with x's first axis."""
-    fields = {}
-    for k in FIELDS:
-        a = jnp.asarray(getattr(structure, k))
-        if a.ndim == 1 and a.shape[0] == N and N != 1:
-            a = a.reshape((N,) + (1,) * (x.ndim - 1))
-        fields[k] = a
-    return fn(RockingStructure(**fields), x)
+
+    def line_up(a):
+        a = jnp.asarray(a)
+        return a.reshape((N,) + (1,) * (x.ndim - 1)) if a.ndim == 1 and N != 1 else a
+
+    return fn(jax.tree_util.tree_map(line_up, structure), x)
 
 
 def _assemble(plan, res, structure, N, ts, summary_only, t_end):

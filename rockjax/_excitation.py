@@ -137,14 +137,86 @@ class GroundMotion(AbstractExcitation):
         return jnp.where(d == 0, 1.0, d)
 
 
-class PaddedGroundMotion(GroundMotion):
-    r"""A `GroundMotion` whose `accel` is zero-padded past its record's end `end` [s] (one
-    record of a batch over records of different lengths, on a common grid): the ground
-    acceleration is zero after `end`, as it is after the last sample of an unpadded record,
-    instead of falling linearly to the padding over one step. Internal to
-    `rockjax.simulate_batch`."""
+class RecordTable(AbstractExcitation):
+    r"""The ground motions of a batch in the one form that every integrator consumes.
 
-    end: jnp.ndarray = eqx.field(converter=_as_float_array, default=np.inf)
+    A table of records, `table` of shape (n_records, n_samples) [m/s²], each zero-padded
+    past its own `lengths` samples, and per member (shape () shared by every member, or
+    (N,) one value per member): `record` (the row it runs), `scale`, `u0` [m], `v0` [m/s]
+    and the sample step `dt` [s]. The ground acceleration of a member is its record's
+    samples linearly interpolated and times `scale`, zero after the record's last sample
+    (as `GroundMotion` defines it); `free=True` makes it a free vibration (the table is
+    then unused and `dt` is the output grid's step).
+
+    The batched stepper (`RK4`, `Dopri5`) advances all members at once; the event-restart
+    integrator runs one member at a time under `jax.vmap` (every per-member field then a
+    scalar). `rockjax.simulate_batch` builds it; `as_table` converts a `GroundMotion` or
+    a `FreeVibration`.
+    """
+
+    table: jnp.ndarray
+    lengths: jnp.ndarray
+    dt: jnp.ndarray
+    record: jnp.ndarray
+    scale: jnp.ndarray
+    u0: jnp.ndarray
+    v0: jnp.ndarray
+    free: bool = eqx.field(static=True, default=False)
+
+    #: the fields that may vary per member (the others are shared by the whole batch)
+    MEMBER_FIELDS = ("dt", "record", "scale", "u0", "v0")
+
+    @property
+    def forced(self) -> bool:
+        return not self.free
+
+    def initial_state(self):
+        return self.u0, self.v0
 
     def ground_acceleration(self, t):
-        return jnp.where(t <= self.end, super().ground_acceleration(t), 0.0)
+        """Ground acceleration [m/s²] of one member (scalar `record`)."""
+        if self.free:
+            return jnp.zeros_like(t)
+        n_tab = self.table.shape[-1]
+        n = self.lengths[self.record]
+        x = t / self.dt
+        i = jnp.clip(jnp.floor(x), 0, n_tab - 2).astype(jnp.int32)
+        f = x - i
+        row = self.table[self.record]
+        a = row[i] * (1.0 - f) + row[i + 1] * f
+        inside = (x >= 0) & (x <= n - 1)
+        return jnp.where(inside, self.scale * a, 0.0)
+
+    def jump_times(self):
+        if self.free:
+            return None
+        return self.dt * jnp.arange(self.table.shape[-1], dtype=self.table.dtype)
+
+    def first_direction(self):
+        """Direction of each member's first motion from rest: opposite to its record's
+        first non-zero sample times its scale (+1 for an all-zero record or a free
+        vibration); shape of `record`."""
+        if self.free:
+            return jnp.ones(jnp.shape(self.record), self.table.dtype)
+        rows = jnp.arange(self.table.shape[0])
+        first = self.table[rows, jnp.argmax(self.table != 0, axis=-1)]  # per record
+        d = -jnp.sign(self.scale * first[self.record])
+        return jnp.where(d == 0, 1.0, d)
+
+
+def as_table(excitation, dtype, *, dt=None, n_min=2):
+    """`excitation` (a `GroundMotion` of one record, or a `FreeVibration`) as a one-record
+    `RecordTable` in `dtype`, the table zero-padded to at least `n_min` samples; a free
+    vibration's `dt` [s] is the output grid's step (required)."""
+    u0, v0 = (jnp.asarray(x, dtype) for x in excitation.initial_state())
+    zero = jnp.zeros((), jnp.int32)
+    if not excitation.forced:
+        return RecordTable(table=jnp.zeros((1, 2), dtype), lengths=jnp.full((1,), 2),
+                           dt=jnp.asarray(dt, dtype), record=zero,
+                           scale=jnp.ones((), dtype), u0=u0, v0=v0, free=True)
+    acc = jnp.asarray(excitation.accel, dtype)
+    pad = max(0, n_min - acc.shape[-1])
+    table = jnp.concatenate([acc, jnp.zeros((pad,), dtype)])[None]
+    return RecordTable(table=table, lengths=jnp.full((1,), acc.shape[-1], jnp.int32),
+                       dt=jnp.asarray(excitation.dt, dtype), record=zero,
+                       scale=jnp.asarray(excitation.scale, dtype), u0=u0, v0=v0)

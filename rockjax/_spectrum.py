@@ -30,9 +30,11 @@ from ._batch import simulate_batch
 from ._checks import check_one_structure, check_periods
 from ._config import ensure_x64
 from ._errors import ParameterError
+from ._execution import Execution
 from ._response import STATUS
 from ._structure import RockingStructure
 from ._sweep import failed_runs
+from .integrators import RK4
 from .models import get_model
 
 #: substep length cap for the springs: omega h <= 0.5 (RK4 refuses omega h > 2.5)
@@ -190,7 +192,7 @@ class _Runner:
         out = simulate_batch(self.structure, list(self.pulses),
                              record=np.concatenate([idx, np.repeat(idx[-1:], pad)]),
                              scale=np.concatenate([amp, np.repeat(amp[-1:], pad)]),
-                             chunk_size=self.chunk, **self.options)
+                             **self.options)
         return np.asarray(out.status)[:n], np.asarray(out.n_impacts)[:n]
 
 
@@ -202,11 +204,13 @@ def _runner(structure, model, impact, kind, T, t_free, substeps, devices, n_memb
     pulses = tuple(_pulses.pulse(kind, 1.0, t, max_dt=max_dt) for t in T)
     dt = np.array([float(g.dt) for g in pulses])
     n_dev = len(jax.local_devices()) if devices is None else max(1, int(devices))
-    options = dict(tail=t_free, model=model, impact=impact, r=r, method="rk4",
-                   substeps=substeps, max_impacts=_MAX_IMPACTS, summary_only=True,
-                   record_steps="own", devices=devices, progress=False, fidelity_warning=False)
-    return _Runner(structure=structure, pulses=pulses, options=options,
-                   chunk=n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev), dt=dt,
+    chunk = n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev)
+    options = dict(tail=t_free, model=get_model(model, impact), r=r,
+                   integrator=RK4(substeps=substeps, max_impacts=_MAX_IMPACTS),
+                   summary_only=True, fidelity_warning=False,
+                   execution=Execution(chunk_size=chunk, devices=devices, progress=False,
+                                       record_steps="own"))
+    return _Runner(structure=structure, pulses=pulses, options=options, chunk=chunk, dt=dt,
                    t_end=T + t_free)
 
 
@@ -324,10 +328,10 @@ def _amplitude_rtol(amplitude_rtol, rtol):
     return rtol
 
 
-def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact="paper",
+def overturning_spectrum(structure, kind, periods, *, model="rigid_body",
                          amplitude_rtol=1e-3, r=None, n_scan=48, max_ratio=1000.0,
-                         t_free=None, substeps=4, devices=None, progress=None,
-                         rtol=None) -> OverturningSpectrum:
+                         t_free=None, substeps=4, execution=None,
+                         **keywords) -> OverturningSpectrum:
     r"""The lowest amplitude [m/s²] of a pulse that overturns `structure`, per period.
 
     **Arguments:**
@@ -337,23 +341,35 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body", impact
       "one_sine" / "sine" or "one_cosine" / "cosine" (`rockjax.pulses`).
     - `periods` [s]: positive, any order.
     - `model`: a model of the fidelity ladder (default `"rigid_body"`, the body's own
-      equation: `docs/models.md`), `impact` its impact rule (the SDOF models, as in
-      `rockjax.simulate`); `r`: the restitution (default the structure's, Eq. 3).
-    - `amplitude_rtol`: the relative width of the final amplitude bracket (default 1e-3;
-      `rtol=`, its earlier name, is still accepted).
+      equation: `docs/models.md`), or a model object (an SDOF model's impact rule goes on
+      it: `rockjax.get_model("simplified", "after_uplift")`); `r`: the restitution
+      (default the structure's, Eq. 3).
+    - `amplitude_rtol`: the relative width of the final amplitude bracket (default 1e-3).
     - `n_scan`: amplitudes per period in the first scan (default 48; an overturning range
       narrower than the scan's step, about 11 %, below the lowest one found can be
       missed); `max_ratio`: give up above `max_ratio` $g\tan\alpha$ (NaN).
     - `t_free` [s]: how long each run goes on after its pulse (default $20/p$: a run near
       the threshold lingers near the unstable equilibrium for about
-      $\ln(1/\epsilon)/p$); `substeps`: RK4 steps per sample step; `devices`, `progress`
-      as `simulate_batch`.
+      $\ln(1/\epsilon)/p$); `substeps`: RK4 steps per sample step.
+    - `execution`: a `rockjax.Execution` with `devices` and `progress` (the spectrum
+      sets the chunks and the records' grid itself).
+    - `**keywords`: the keyword form of earlier versions, still accepted: `impact=`,
+      `rtol=` (now `amplitude_rtol`), `devices=`, `progress=`.
 
     **Returns:** an `OverturningSpectrum` (`.plot()` draws it as the literature does,
     amplitude / ($g\tan\alpha$) against $\omega_p/p$, or $p\,t_1$ for a rectangular pulse).
     """
     ensure_x64()
     start = time.perf_counter()
+    impact, rtol = keywords.pop("impact", "paper"), keywords.pop("rtol", None)
+    execution = Execution.from_keywords(execution, keywords)
+    if keywords:
+        raise TypeError(f"overturning_spectrum() got unexpected keyword arguments "
+                        f"{sorted(keywords)}")
+    if execution.chunk_size is not None or execution.record_steps != "common":
+        raise ParameterError("execution: a spectrum sets its chunks and the records' grid "
+                             "itself; give devices and progress only", param="execution")
+    devices, progress = execution.devices, execution.progress
     rtol = _amplitude_rtol(amplitude_rtol, rtol)
     check_one_structure(structure, "a spectrum is computed for one structure at a time")
     if kind not in _pulses.KINDS:

@@ -228,6 +228,82 @@ def test_batched_structures_records_and_initial_states(column, gm):
     np.testing.assert_allclose(fv.peak_u, [0.02, 0.05], rtol=1e-12)
 
 
+def test_execution_object_equals_the_keyword_form(column, gm):
+    """`execution=rockjax.Execution(...)` and the earlier keywords run the same batch; the
+    initial state batched on the excitation equals `u0=`; both forms at once are refused
+    naming the keyword (issue 23: simulate_batch in at most 12 parameters)."""
+    sc = np.linspace(0.2, 1.2, 5)
+    new = simulate_batch(column, gm, 3.0, scale=sc, summary_only=True,
+                         execution=rockjax.Execution(chunk_size=2, progress=False))
+    old = simulate_batch(column, gm, 3.0, scale=sc, summary_only=True, chunk_size=2,
+                         progress=False)
+    for name in ("peak_u", "n_impacts", "status"):
+        np.testing.assert_array_equal(getattr(new, name), getattr(old, name))
+    u0 = np.array([0.02, 0.05, 0.08])
+    on_exc = simulate_batch(column, FreeVibration(u0=u0), 1.0, summary_only=True)
+    as_kw = simulate_batch(column, FreeVibration(0.0), 1.0, u0=u0, summary_only=True)
+    np.testing.assert_array_equal(on_exc.peak_u, as_kw.peak_u)
+    with pytest.raises(rockjax.ParameterError, match="chunk_size= and execution=") as e:
+        simulate_batch(column, gm, 3.0, chunk_size=2, execution=rockjax.Execution())
+    assert e.value.param == "chunk_size"
+    for bad, param in ((dict(chunk_size=0), "chunk_size"), (dict(devices=1.5), "devices"),
+                       (dict(record_steps="mine"), "record_steps")):
+        with pytest.raises(rockjax.ParameterError) as e:
+            rockjax.Execution(**bad)
+        assert e.value.param == param
+
+
+def test_record_table_is_the_ground_motion_of_each_member(gm):
+    """`RecordTable`, the one excitation form of a batch: a member's ground acceleration
+    is its record's (times its scale), zero after its own last sample even where the table
+    is padded; its first direction is opposite to its first non-zero sample."""
+    from rockjax._excitation import as_table
+
+    n = np.asarray(gm.accel).size
+    one = as_table(gm, jnp.float64, n_min=n + 50)  # padded by 50 zero samples
+    t = np.linspace(-0.1, float(gm.duration) + 0.3, 997)
+    np.testing.assert_allclose(jax.vmap(one.ground_acceleration)(t),
+                               jax.vmap(gm.ground_acceleration)(t), atol=1e-12)
+    # two records of different lengths in one table: the shorter one ends at its end
+    short = np.asarray(gm.accel)[:300] + 1.0  # non-zero up to its last sample
+    table = np.zeros((2, n))
+    table[0], table[1, :300] = np.asarray(gm.accel), short
+    rt = rockjax.RecordTable(table=jnp.asarray(table), lengths=jnp.array([n, 300]),
+                             dt=jnp.asarray(gm.dt), record=jnp.asarray(1), scale=jnp.asarray(-2.0),
+                             u0=jnp.zeros(()), v0=jnp.zeros(()))
+    end = float(gm.dt) * 299
+    assert float(rt.ground_acceleration(end)) == pytest.approx(-2.0 * short[-1])
+    assert float(rt.ground_acceleration(end + 0.5 * float(gm.dt))) == 0.0
+    assert float(rt.first_direction()) == 1.0  # -sign(-2 * (a0 + 1)) with a0 + 1 > 0
+    rows = eqx_set(rt, record=jnp.array([0, 1, 1]), scale=jnp.array([1.0, 1.0, -1.0]))
+    d = np.asarray(rows.first_direction())
+    first0 = np.asarray(gm.accel)[np.argmax(np.asarray(gm.accel) != 0)]
+    np.testing.assert_array_equal(d, [-np.sign(first0), -1.0, 1.0])
+
+
+def eqx_set(module, **fields):
+    import equinox as eqx
+
+    return eqx.tree_at(lambda m: [getattr(m, k) for k in fields], module, list(fields.values()))
+
+
+def test_grad_through_a_batch_names_the_input(column):
+    """`jax.grad` through `simulate_batch` gives a clear error naming the traced input
+    (before: a raw TracerArrayConversionError), pointing at `simulate`."""
+    def peak(k_f):
+        out = simulate_batch(column.replace(k_f=k_f), FreeVibration(0.05), 1.0,
+                             summary_only=True)
+        return out.peak_u.sum()
+
+    with pytest.raises(rockjax.ParameterError, match="differentiate rockjax.simulate") as e:
+        jax.grad(peak)(column.k_f)
+    assert e.value.param == "structure"
+    with pytest.raises(rockjax.ParameterError) as e:
+        jax.grad(lambda a: simulate_batch(column, FreeVibration(0.05), 1.0, scale=a,
+                                          summary_only=True).peak_u.sum())(1.0)
+    assert e.value.param == "scale"
+
+
 @pytest.mark.parametrize(
     "kwargs, match",
     [

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._checks import default_substeps, is_traced, stepper_grid_step
+from .._excitation import as_table
 from ._event_restart import RestartConfig, solve as _restart_solve
 from ._hermite import resample
 from ._stepper import run, StepperConfig
@@ -194,18 +195,11 @@ class _AbstractStepper(AbstractIntegrator):
             raise ValueError(f"t1 must be a concrete number with method {self.method!r}")
         t1f = float(t1)
         dtype = jnp.result_type(structure.B)
-        dt_rec, n_steps, table, scale = _grid_table(excitation, t1f, self.dt, self.method,
-                                                    dtype)
+        dt_rec, n_steps = _grid(excitation, t1f, self.dt, self.method)
         cfg = self.config(model, forced=excitation.forced, n_steps=n_steps, full=True)
-        u0, v0 = excitation.initial_state()
-        # zero forcing right after the record's last sample, as GroundMotion defines it
-        lengths = (jnp.asarray([excitation.accel.shape[-1]], jnp.int32) if excitation.forced
-                   else None)
-        out = _run_jit(model, structure, table, jnp.zeros((1,), jnp.int32),
-                       jnp.asarray(dt_rec, dtype), jnp.asarray(scale, dtype),
-                       jnp.reshape(jnp.asarray(u0, dtype), (1,)),
-                       jnp.reshape(jnp.asarray(v0, dtype), (1,)), jnp.asarray(r, dtype),
-                       jnp.asarray(t1f, dtype), cfg, lengths)
+        table = as_table(excitation, dtype, dt=dt_rec, n_min=n_steps + 2)
+        out = _run_jit(model, structure, eqx.tree_at(lambda e: e.u0, table, table.u0[None]),
+                       jnp.asarray(r, dtype), jnp.asarray(t1f, dtype), cfg)
         out = {k: v[0] for k, v in out.items()}
         out["peak_uplift"] = model.peak_uplift(structure, out["peak_u"], out["peak_uplift"])
         grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
@@ -278,18 +272,11 @@ class Dopri5(_AbstractStepper):
 _run_jit = eqx.filter_jit(run)
 
 
-def _grid_table(excitation, t1f, dt, method, dtype):
-    """(grid step [s], number of steps, padded record table (1, n) [m/s²], scale), in
-    `dtype`."""
+def _grid(excitation, t1f, dt, method):
+    """(grid step [s], number of steps) of one run on the stepper."""
     if excitation.forced and is_traced(excitation.dt):
         raise ValueError(f"the record's dt must be concrete with method {method!r}")
-    dt_rec, n_steps = stepper_grid_step(excitation, t1f, dt)
-    if not excitation.forced:
-        return dt_rec, n_steps, jnp.zeros((1, 2), dtype), jnp.ones((), dtype)
-    acc = jnp.asarray(excitation.accel, dtype)
-    pad = max(0, n_steps + 2 - acc.shape[-1])
-    table = jnp.concatenate([acc, jnp.zeros((pad,), dtype)])[None]
-    return dt_rec, n_steps, table, excitation.scale
+    return stepper_grid_step(excitation, t1f, dt)
 
 
 def resample_outputs(model, grid, out, ts, of_u):

@@ -346,15 +346,6 @@ def substep(model, cfg, s, r, st, t_start, L, a0, a1, compact=True):
     return eqx.tree_at(lambda m: m.tally, st, tally_fail(st.tally, tau < L))
 
 
-def _first_direction(table, rec, scale):
-    """Direction of the first motion from rest: opposite to each record's first non-zero
-    sample (+1 for a free vibration, whose table is zero)."""
-    nz = jnp.argmax(table != 0, axis=-1)
-    a_first = table[jnp.arange(table.shape[0]), nz][rec]
-    first = -jnp.sign(scale * a_first)
-    return jnp.where(first == 0, 1.0, first)
-
-
 def _step_length(st, t0, dt_rec, t1):
     """(carry, length [s] of the step from `t0`): `min(dt_rec, t1 - t0)`. With one end per
     member (`t1` of shape (N,)) a member whose end is reached is marked done first (its
@@ -369,20 +360,19 @@ def _step_length(st, t0, dt_rec, t1):
     return st, jnp.where(alive, jnp.minimum(dt_rec, left), dt_rec)
 
 
-def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: StepperConfig,
-        lengths=None):
-    """Integrate a batch with `model`. Per-member inputs (`rec`, `scale`, `u0` [m], `v0`
-    [m/s], `r`, and the fields of `structure`) have shape `(N,)` or `()`; `table` is
-    `(n_records, n_samples + pad)` [m/s²], zero beyond each record's end; `dt_rec` [s] the
-    record step (the output grid step for a free vibration; shape `(N,)` gives each member
-    its own grid, e.g. pulses of different lengths) and `t1` [s] the end time.
+def run(model, structure, excitation, r, t1, cfg: StepperConfig):
+    """Integrate a batch with `model`. `excitation` is a `rockjax.RecordTable` (its table
+    zero-padded to at least `cfg.n_steps + 2` samples); its per-member fields, `r` and the
+    fields of `structure` have shape `(N,)` (one value per member) or `()` (shared). The
+    record step `excitation.dt` [s] is the grid step (for a free vibration, the output
+    grid's); shape `(N,)` gives each member its own grid, e.g. pulses of different
+    lengths. `t1` [s] is the end time.
 
     `t1` of shape `(N,)` gives each member its own end: a member stops there (its last
     step shortened to end exactly at its `t1`) and nothing after it counts: no impacts,
-    peaks or status; its state is held on the rest of the grid. `lengths` (shape
-    `(n_records,)`, optional) are the records' sample counts in `table`: the ground
-    acceleration is zero after a record's last sample (as `GroundMotion` defines it)
-    rather than falling linearly to the zero padding over one step.
+    peaks or status; its state is held on the rest of the grid. The ground acceleration
+    is zero after a record's last sample (`excitation.lengths`), as `GroundMotion`
+    defines it, rather than falling linearly to the zero padding over one step.
 
     Returns a dict: peak_u, peak_uplift (the largest uplift seen at piece ends: the caller
     applies `model.peak_uplift`, outside the compiled loop, so that summaries and full
@@ -390,10 +380,15 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
     with `cfg.full`, u, v, theta, uplift on the grid (N, n_steps + 1) and impact_times
     (N, max_impacts).
     """
-    N = jnp.shape(u0)[0]
+    exc = excitation
+    N = max([1, *(jnp.shape(x)[0] for x in jax.tree_util.tree_leaves(
+        (structure, r, t1, *(getattr(exc, k) for k in exc.MEMBER_FIELDS)))
+        if jnp.ndim(x) == 1)])
     s = structure.evaluated()
-    scale, r, rec = (jnp.broadcast_to(x, (N,)) for x in (scale, r, rec))
-    first = _first_direction(table, rec, scale)
+    scale, r, rec, u0, v0 = (jnp.broadcast_to(x, (N,)) for x in (
+        exc.scale, r, exc.record, exc.u0, exc.v0))
+    table, dt_rec = exc.table, exc.dt
+    first = jnp.broadcast_to(exc.first_direction(), (N,))
     y, mode = per_member(lambda *a: model.init(*a, cfg.forced), s)(u0, v0, first)
     unstable = jnp.zeros((N,), bool)
     if cfg.method == "rk4":
@@ -406,7 +401,7 @@ def run(model, structure, table, rec, dt_rec, scale, u0, v0, r, t1, cfg: Stepper
         y, mode, unstable)
     st = Member(y=y, mode=mode, tally=tally, hprop=jnp.full((N,), jnp.inf, y.dtype))
     n_tab = table.shape[-1]
-    n_rec = n_tab if lengths is None else jnp.asarray(lengths)[rec]
+    n_rec = exc.lengths[rec]
     sub = cfg.substeps
 
     def outer(st, k):

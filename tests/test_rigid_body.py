@@ -149,8 +149,13 @@ def _sine(dt=0.002, cycles=2, f=2.0, amp=4.0):
 def test_registered():
     assert rockjax.MODELS["rigid_body"] is rockjax.RigidBody
     assert isinstance(rockjax.get_model("rigid_body"), rockjax.RigidBody)
-    # the SDOF impact rule does not apply; it is accepted as for the 2-DOF body
-    assert isinstance(rockjax.get_model("rigid_body", impact="after_uplift"), rockjax.RigidBody)
+    # the SDOF impact rule does not apply: refused naming it (issue 24; it was silently
+    # ignored, and the sweep plot then said "impact rule after_uplift" for landings)
+    for name in ("rigid_body", "two_spring_2dof"):
+        with pytest.raises(rockjax.ParameterError, match="applies to the SDOF") as e:
+            rockjax.get_model(name, impact="after_uplift")
+        assert e.value.param == "impact"
+    assert isinstance(rockjax.get_model("rigid_body", impact="paper"), rockjax.RigidBody)
     with pytest.raises(ValueError, match="model must be one of.*'rigid_body'"):
         rockjax.get_model("rigid")
 

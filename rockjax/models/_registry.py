@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._errors import ParameterError
 from ._base import AbstractRockingModel
 from ._laws import AbstractRestoringForce, Exact, Housner, Simplified, Smooth
 from ._rigidbody import RigidBody
@@ -25,17 +26,24 @@ def get_model(model, impact: str = "paper") -> AbstractRockingModel:
     - a name: `"housner"`, `"simplified"`, `"exact"`, `"smooth"` (each the SDOF Eq. 1 with
       that law and the impact rule `impact`), `"two_spring_2dof"` (the 2-DOF body) or
       `"rigid_body"` (the body's own one-DOF rocking equation, `RigidBody`); `impact`
-      applies to the SDOF models only;
+      applies to the SDOF models only (another rule with another model raises
+      `ParameterError`);
     - an `AbstractRestoringForce` (e.g. `rockjax.Smooth(width=0.1)`): the SDOF with it;
     - an `AbstractRockingModel` (e.g. `rockjax.TwoSpring2DOF(damping=...)`): itself.
     """
     if impact not in IMPACT_RULES:
-        raise ValueError(f"impact must be one of {IMPACT_RULES}, got {impact!r}")
+        raise ParameterError(f"impact must be one of {IMPACT_RULES}, got {impact!r}",
+                             param="impact")
     if isinstance(model, str) and model in MODELS:
         model = MODELS[model]()
     if isinstance(model, AbstractRestoringForce):
         return SDOF(law=model, impact=impact)
     if isinstance(model, AbstractRockingModel):
+        if impact != "paper" and not isinstance(model, SDOF):
+            raise ParameterError(
+                f"impact={impact!r} applies to the SDOF models of Eq. 1 (housner, "
+                f"simplified, exact, smooth); {type(model).__name__} has its own contact "
+                "law (its impacts are landings): leave impact at 'paper'", param="impact")
         return model
     raise ValueError(
         f"model must be one of {', '.join(repr(m) for m in MODELS)}, an "

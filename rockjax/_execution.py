@@ -18,7 +18,7 @@ class Execution:
     - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
       padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
       or as many full responses as fit in about 256 MB.
-    - `devices`: how many local devices to split each chunk over (default: all of
+    - `devices`: how many local devices (from 1 to the number of local devices) to split each chunk over (default: all of
       `jax.local_devices()`; on a CPU `rockjax.configure()` makes one device per core,
       unless `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or
       JAX ran before it: docs/batches.md; without it, a batch on one CPU device of a
@@ -35,11 +35,8 @@ class Execution:
 
     **Example:**
 
-    ```python
-    >>> rockjax.Execution(chunk_size=512, progress=False)
-    Execution(chunk_size=512, devices=None, progress=False, record_steps='common')
-
-    ```
+        >>> rockjax.Execution(chunk_size=512, progress=False)
+        Execution(chunk_size=512, devices=None, progress=False, record_steps='common')
     """
 
     chunk_size: int | None = None
@@ -51,12 +48,13 @@ class Execution:
     KEYWORDS = ("chunk_size", "devices", "progress", "record_steps")
 
     def __post_init__(self):
-        for name in ("chunk_size", "devices"):
-            v = getattr(self, name)
-            if v is not None and not (isinstance(v, int) and not isinstance(v, bool)
-                                      and v >= 1):
-                raise ParameterError(f"{name} must be a positive integer, got {v!r}",
-                                     param=name)
+        v = self.chunk_size
+        if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
+            raise ParameterError(f"chunk_size must be a positive integer, got {v!r}",
+                                 param="chunk_size")
+        v = self.devices  # its upper bound, the local devices, is checked when a batch runs
+        if v is not None and not (isinstance(v, int) and not isinstance(v, bool)):
+            raise ParameterError(f"devices must be an integer, got {v!r}", param="devices")
         if self.progress not in (None, True, False):
             raise ParameterError(f"progress must be True, False or None, got "
                                  f"{self.progress!r}", param="progress")

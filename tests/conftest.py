@@ -41,6 +41,19 @@ def pytest_sessionfinish(session, exitstatus):
     shutil.rmtree(_COMPILE_CACHE, ignore_errors=True)
 
 
+def pytest_runtest_logfinish(nodeid, location):
+    """With ROCKJAX_MEMLOG=FILE, each worker appends "worker nodeid peak-RSS-kB" after every
+    test: where a worker's memory grows (issue 24: a worker peaked at 5.8 GB;
+    `python benchmarks/worker_memory.py` reads the log)."""
+    path = os.environ.get("ROCKJAX_MEMLOG")
+    if path:
+        import resource
+
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        with open(path, "a") as f:
+            f.write(f"{os.environ.get('PYTEST_XDIST_WORKER', 'main')} {nodeid} {rss}\n")
+
+
 @pytest.fixture(autouse=True)
 def _no_process_wide_compile_cache():
     """No test leaves JAX's persistent compilation cache on in the test process itself.

@@ -54,15 +54,19 @@ def binary_kind(raw: bytes) -> str | None:
     return None
 
 
-def read_text(path: str | os.PathLike[str]) -> tuple[str, bool]:
-    """(the text of the file at `path`, whether it was gzip-compressed).
+def read_text(path) -> tuple[str, bool]:
+    """(the text of the file at `path` (str, os.PathLike or an importlib.resources
+    Traversable), whether it was gzip-compressed).
 
     gzip is recognised by its magic bytes; text is decoded as UTF-8 (a byte-order mark is
     dropped, bytes that are not UTF-8 are replaced). Raises ValueError naming the file for
     a gzip file that is damaged and for binary formats (`binary_kind`); OSError as `open`.
     """
-    with open(path, "rb") as f:
-        raw = f.read()
+    if isinstance(path, (str, os.PathLike)):
+        with open(path, "rb") as f:
+            raw = f.read()
+    else:  # an importlib.resources Traversable
+        raw = path.read_bytes()
     compressed = raw.startswith(_GZIP_MAGIC)
     if compressed:
         try:

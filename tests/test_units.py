@@ -64,6 +64,13 @@ TABLE = [
     ("us", "time", "us", 1e-6),
     ("µs", "time", "us", 1e-6),
     ("min", "time", "min", 60.0),
+    # angle [rad]
+    ("rad", "angle", "rad", 1.0),
+    ("radians", "angle", "rad", 1.0),
+    ("mrad", "angle", "mrad", 1e-3),
+    ("deg", "angle", "deg", 0.017453292519943295),
+    ("degrees", "angle", "deg", 0.017453292519943295),
+    ("°", "angle", "deg", 0.017453292519943295),
 ]
 
 
@@ -84,7 +91,7 @@ def test_every_unit_and_spelling(spelling, kind, name, size):
 def test_the_table_is_covered_and_canonical():
     """Every canonical name appears in TABLE above, every spelling of the table maps to a
     canonical name of its kind, and the SI unit of each kind has size 1."""
-    assert set(UNITS) == {"length", "acceleration", "time"}
+    assert set(UNITS) == {"length", "acceleration", "time", "angle"}
     assert {(k, n) for _, k, n, _ in TABLE} == {(k, n) for k in UNITS for n in UNITS[k]}
     for spelling, (kind, name) in UNITS.spellings.items():
         assert name in UNITS[kind], spelling

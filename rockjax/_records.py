@@ -412,20 +412,25 @@ def _regular(t: np.ndarray, accel: np.ndarray, linenos: list[int], source: str,
             f"(t={float(t[i + 1])!r} s after t={float(t[i])!r} s)"
         )
     dt_med = float(np.median(d))
-    dev = np.abs(d - dt_med)
-    if not np.any(dev > 1e-6 * dt_med + 1e-9):
+    if not np.any(np.abs(d - dt_med) > 1e-6 * dt_med + 1e-9):
         return float((t[-1] - t[0]) / (t.size - 1)), accel
+    index = np.arange(t.size, dtype=np.float64)
+    slope, intercept = np.polyfit(index, t, 1)  # the clock's step and start, fitted
+    dev = np.abs(t - (intercept + slope * index)) / slope
     i = int(np.argmax(dev))
-    worst = float(dev[i]) / dt_med
+    worst = float(dev[i])
     if worst > tolerance:
+        off = np.flatnonzero(np.abs(d - dt_med) > 2.0 * tolerance * dt_med)
+        k = int(off[0]) if off.size else max(i - 1, 0)
         raise ParameterError(
-            f"{source}, line {linenos[i + 1]}: non-uniform time step: step "
-            f"{float(d[i]):.10g} s from t={float(t[i]):.10g} s differs from the median step "
-            f"{dt_med:.10g} s by {worst:.3g} of a step, more than the tolerance "
-            f"time_tolerance={tolerance:g} (a jitter within it is resampled)",
+            f"{source}, line {linenos[k + 1]}: non-uniform time step: step "
+            f"{float(d[k]):.10g} s from t={float(t[k]):.10g} s differs from the median step "
+            f"{dt_med:.10g} s; the time column is {worst:.3g} of a step off a uniform clock "
+            f"(at line {linenos[i]}), more than the tolerance time_tolerance={tolerance:g} "
+            "(a jitter within it is resampled)",
             param="time_tolerance", choices=(float(f"{worst * 1.01:.2g}"),))
-    dt = float(f"{float((t[-1] - t[0]) / (t.size - 1)):.6g}")
-    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-6)) + 1)
+    dt = float(f"{slope:.6g}")
+    grid = t[0] + dt * index  # the same number of samples; np.interp holds the last value
     warnings.warn(
         f"{source}: the time column jitters by up to {worst:.3g} of its step (tolerance "
         f"{tolerance:g}); resampled onto a uniform step of {dt:g} s by linear interpolation",
@@ -555,9 +560,9 @@ def _check_pga(accel: np.ndarray, units: str, units_source: str, source: str) ->
     peak = pga_g * G_STANDARD / _units.factor(units, _ACCEL)
     other = [u for u in ("g", "m/s2", "cm/s2", "mm/s2")
              if 0.001 <= peak * _units.factor(u, _ACCEL) / G_STANDARD <= 2.0 and u != units]
-    hint = (f"; in {' or '.join(other)} it would be "
-            + " or ".join(f"{peak * _units.factor(u, _ACCEL) / G_STANDARD:.3g} g"
-                          for u in other)) if other else ""
+    hint = ("; read in other units the PGA would be " + ", ".join(
+        f"{peak * _units.factor(u, _ACCEL) / G_STANDARD:.3g} g ({u})" for u in other)
+            if other else "")
     raise ParameterError(
         f"{source}: PGA {pga_g:.3g} g is implausible for a ground motion (more than "
         f"{MAX_PLAUSIBLE_PGA_G:g} g): the values peak at {peak:.4g}, read as {units} "

@@ -37,6 +37,7 @@ _BINARY = (
     (b"\xfd7zXZ", "an xz archive; decompress it (gzip files are read directly)"),
 )
 _DECIMAL_COMMA_RE = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+_INT_RE = re.compile(r"[+-]?\d+")
 _DATA_START_RE = re.compile(r"[+-]?(?:\d|\.\d)")
 
 
@@ -127,7 +128,8 @@ def _data_rows(lines: list[str], limit: int = 200) -> list[str]:
 def sniff(lines: list[str]) -> Dialect:
     """The `Dialect` of the rows of numbers among `lines` (those that start with a digit,
     a sign or a point): ``;`` when every row holds one; else blanks (and tabs) when every
-    blank-separated field of every row is a number with a decimal comma (``0,01 -0,5``);
+    blank-separated field of every row is a number with a decimal comma (``0,01 -0,5``)
+    or an integer, and some have a decimal comma;
     else commas when every row holds one; else blanks. Decimal commas count with ``;`` or
     blank separators only."""
     rows = _data_rows(lines)
@@ -137,7 +139,8 @@ def sniff(lines: list[str]) -> Dialect:
         fields = [f.strip() for r in rows for f in r.split(";") if f.strip()]
         return Dialect(";", any(_DECIMAL_COMMA_RE.fullmatch(f) for f in fields))
     blank = [f for r in rows for f in r.split()]
-    if all("," in r for r in rows) and all(_DECIMAL_COMMA_RE.fullmatch(f) for f in blank):
+    if (any("," in r for r in rows) and any(_DECIMAL_COMMA_RE.fullmatch(f) for f in blank)
+            and all(_DECIMAL_COMMA_RE.fullmatch(f) or _INT_RE.fullmatch(f) for f in blank)):
         return Dialect(None, True)
     if all("," in r for r in rows):
         return Dialect(",", False)

@@ -566,7 +566,7 @@ def _check_pga(accel: np.ndarray, units: str, units_source: str, source: str) ->
     raise ParameterError(
         f"{source}: PGA {pga_g:.3g} g is implausible for a ground motion (more than "
         f"{MAX_PLAUSIBLE_PGA_G:g} g): the values peak at {peak:.4g}, read as {units} "
-        f"({units_source}){hint}; check the units, or read it anyway",
+        f"({units_source}){hint}; check the units, or read it as it is",
         param="check_plausible", choices=(False,))
 
 

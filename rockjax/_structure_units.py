@@ -125,5 +125,5 @@ def check_plausible(values: dict[str, float], d: dict, source: str) -> None:
         raise ParameterError(
             f"{source}: {field} = {x:g} m{stated} is implausible for a rocking structure "
             f"(more than {limit:g} m); if the file is in millimetres, add units = \"mm\" "
-            f"(or \"N-mm-t\") at its top or write {field}_mm = {x:g}; or accept it",
+            f"(or \"N-mm-t\") at its top or write {field}_mm = {x:g}; or read it as it is",
             param="check_plausible", choices=(False,))

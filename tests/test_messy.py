@@ -187,3 +187,26 @@ def test_structure_units_and_suffixes(tmp_path):
     p.write_text(messy.toml(messy._mcmanus(length=1e-3)))
     s = rockjax.RockingStructure.from_toml(p, check_plausible=False)
     assert float(s.B) == 285.0  # accepted as asked: SI, as written
+
+
+# ---------------------------------------------------------------------- command line
+def test_command_line_names_the_override(tmp_path, capsys):
+    """The plausibility errors read in the command's terms (--no-plausibility-check),
+    which every command that reads a file accepts."""
+    from rockjax.cli import build_parser, main
+
+    by_name = {c.name: c for c in messy.CASES}
+    rec = by_name["rec_cm_s2_no_title_flag_m_s2.csv"].write(tmp_path)
+    assert main(["simulate", "--record", str(rec), "--units", "m/s2"]) == 2
+    err = capsys.readouterr().err
+    assert "PGA 30 g is implausible" in err and err.rstrip().endswith(
+        "; pass --no-plausibility-check")
+    structure = by_name["st_mm_no_units.toml"].write(tmp_path)
+    assert main(["pushover", "--structure", str(structure)]) == 2
+    assert "B = 285 m is implausible" in capsys.readouterr().err
+    parser = build_parser()
+    for argv in (["simulate", "--u0", "0.01"], ["pushover"], ["fit", "x.csv"],
+                 ["spectrum", "--pulse", "sine", "--periods", "1"],
+                 ["sweep", "--record", "x.AT2"]):
+        assert parser.parse_args(argv).check_plausible is True
+        assert parser.parse_args([*argv, "--no-plausibility-check"]).check_plausible is False

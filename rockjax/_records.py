@@ -429,7 +429,9 @@ def _regular(t: np.ndarray, accel: np.ndarray, linenos: list[int], source: str,
             f"(at line {linenos[i]}), more than the tolerance time_tolerance={tolerance:g} "
             "(a jitter within it is resampled)",
             param="time_tolerance", choices=(float(f"{worst * 1.01:.2g}"),))
-    dt = float(f"{slope:.6g}")
+    # the shortest decimal step that stays within half the tolerance over the record
+    dt = next(c for c in (float(f"{slope:.{k}g}") for k in range(1, 18))
+              if abs(c - slope) * (t.size - 1) <= 0.5 * tolerance * slope)
     grid = t[0] + dt * index  # the same number of samples; np.interp holds the last value
     warnings.warn(
         f"{source}: the time column jitters by up to {worst:.3g} of its step (tolerance "

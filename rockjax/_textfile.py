@@ -38,7 +38,8 @@ _BINARY = (
 )
 _DECIMAL_COMMA_RE = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
 _INT_RE = re.compile(r"[+-]?\d+")
-_DATA_START_RE = re.compile(r"[+-]?(?:\d|\.\d)")
+_DATA_START_RE = re.compile(r"[+-]?(?:\d|[.,]\d)")
+_DATA_CHARS_RE = re.compile(r"[0-9eEdD+\-.,;\s]+")  # a row of numbers, no words
 
 
 def binary_kind(raw: bytes) -> str | None:
@@ -118,7 +119,7 @@ def _data_rows(lines: list[str], limit: int = 200) -> list[str]:
     rows = []
     for line in lines:
         s = line.strip()
-        if s and _DATA_START_RE.match(s):
+        if s and _DATA_START_RE.match(s) and _DATA_CHARS_RE.fullmatch(s):
             rows.append(s)
             if len(rows) >= limit:
                 break
@@ -127,15 +128,19 @@ def _data_rows(lines: list[str], limit: int = 200) -> list[str]:
 
 def sniff(lines: list[str]) -> Dialect:
     """The `Dialect` of the rows of numbers among `lines` (those that start with a digit,
-    a sign or a point): ``;`` when every row holds one; else blanks (and tabs) when every
-    blank-separated field of every row is a number with a decimal comma (``0,01 -0,5``)
-    or an integer, and some have a decimal comma;
-    else commas when every row holds one; else blanks. Decimal commas count with ``;`` or
-    blank separators only."""
+    a sign or a point and hold only numbers and separators):
+
+    - ``;`` when every row of more than one field holds one (the last row of an AT2 file
+      may hold a single value), with decimal commas if any value has one;
+    - blanks (and tabs) with decimal commas when every blank-separated field is a number
+      with a decimal comma (``0,01 -0,5``) or an integer, and some have one;
+    - commas when every row holds one;
+    - else blanks (decimal commas when some value has one and none has a point).
+    """
     rows = _data_rows(lines)
     if not rows:
         return Dialect()
-    if all(";" in r for r in rows):
+    if any(";" in r for r in rows) and all(";" in r or len(r.split()) == 1 for r in rows):
         fields = [f.strip() for r in rows for f in r.split(";") if f.strip()]
         return Dialect(";", any(_DECIMAL_COMMA_RE.fullmatch(f) for f in fields))
     blank = [f for r in rows for f in r.split()]

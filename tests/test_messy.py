@@ -149,10 +149,41 @@ def test_jitter_warning_states_the_tolerance(tmp_path):
         rockjax.read_record(p, time_tolerance=0.7)
 
 
-def test_real_records_still_read(ground_motions_dir):
-    """The shared real records read as before (and none is implausible)."""
-    for path in sorted(ground_motions_dir.glob("*.AT2")):
-        assert 0.05 < rockjax.read_record(path).pga / rockjax.G_STANDARD < 2.0
+def _european(text: str) -> str:
+    """`text` with its rows of numbers written as European CSV (';', decimal commas)."""
+    out = []
+    for line in text.splitlines():
+        toks = line.split()
+        try:
+            [float(x) for x in toks]
+        except ValueError:
+            out.append(line)
+            continue
+        out.append(";".join(x.replace(".", ",") for x in toks))
+    return "\n".join(out) + "\n"
+
+
+def test_real_records_gzip_and_european(ground_motions_dir, tmp_path):
+    """Every shared real record reads the same gzip-compressed and as European CSV (and
+    none is implausible); a real record read in the wrong units is refused."""
+    units = {"elcentro_NS_full.dat": "g", "Northridge_Sylmar_County.dat": "m/s2"}
+    paths = sorted(p for p in ground_motions_dir.iterdir() if p.suffix != ".md")
+    assert len(paths) == 7
+    for path in paths:
+        rec = rockjax.read_record(path, units=units.get(path.name))
+        assert 0.05 < rec.pga / rockjax.G_STANDARD < 2.0
+        gz = tmp_path / (path.name + ".gz")
+        gz.write_bytes(gzip.compress(path.read_bytes()))
+        eu = tmp_path / ("eu_" + path.name)
+        eu.write_text(_european(path.read_text(errors="replace")))
+        for other in (gz, eu):
+            again = rockjax.read_record(other, units=units.get(path.name),
+                                        format="at2" if path.suffix == ".AT2" else None)
+            assert (again.dt, again.npts, again.units_in_file) == (rec.dt, rec.npts,
+                                                                   rec.units_in_file)
+            np.testing.assert_array_equal(again.accel, rec.accel)
+    with pytest.raises(rockjax.ParameterError, match=r"PGA 8\.27 g is implausible"):
+        rockjax.read_record(ground_motions_dir / "Northridge_Sylmar_County.dat", units="g")
 
 
 # ------------------------------------------------------------------------- traces

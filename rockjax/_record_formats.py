@@ -74,8 +74,8 @@ def read_esm(lines: list[str], source: str):
     for key in ("SAMPLING_INTERVAL_S", "NDATA", "UNITS"):
         if not header.get(key):
             raise ValueError(f"{source}: ESM header without {key}")
-    kind = header.get("DATA_TYPE", "ACCELERATION").upper()
-    if "ACCELERATION" not in kind:
+    kind = " ".join(header.get("DATA_TYPE", "ACCELERATION").upper().split())
+    if kind != "ACCELERATION":
         raise ValueError(f"{source}: the ESM file holds DATA_TYPE {kind}; rockjax reads "
                          "acceleration records (DATA_TYPE: ACCELERATION)")
     try:

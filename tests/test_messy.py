@@ -45,6 +45,17 @@ def test_check_catches_a_wrong_value(tmp_path):
     assert not ok and outcome.startswith("read without error")
 
 
+def test_a_row_with_its_own_reader_and_predicate(tmp_path):
+    """Rows may bring their own reader (a fit, say) and a predicate on what it returns."""
+    case = messy.Case("own.csv", lambda path, scale: float(path.read_text()) * scale, "2.5",
+                      messy.Truth(predicate=lambda x: None if x == 5.0 else f"got {x}"),
+                      "own reader", "-", kwargs={"scale": 2.0})
+    assert messy.check(case, tmp_path) == (True, "5.0")
+    bad = messy.Case("own.csv", case.reader, "2.0", case.truth, "own reader", "-",
+                     kwargs={"scale": 2.0})
+    assert messy.check(bad, tmp_path) == (False, "4.0 -- WRONG: got 4.0")
+
+
 def test_table_prints_every_case():
     text = messy.table()
     assert text.count("\n") == len(messy.CASES) + 1

@@ -20,6 +20,16 @@ what was read (:meth:`DecayTrace.info`). ``read_trace(path, columns={"t": "Zeit"
 "Weg_mm"})`` picks the columns by name instead (others are ignored), and ``units={"u":
 "mm"}`` gives units the header does not state.
 
+**Text.** The file may be gzip-compressed, and its values separated by commas, ``;``,
+tabs or blanks, with decimal points or decimal commas (``rockjax.datasets.read_text`` and
+``normalize_rows``, shared with the record reader).
+
+**Plausibility.** A median time step of 0.1 s or more (a time column in ms under a plain
+``t`` title) and a displacement column in mm, cm or um that never reaches 1 mm (metres
+under a ``disp_mm`` title) are refused with a hint on the units, unless
+``check_plausible=False``. A rotation column (``theta``, ``rotation``, or in rad/deg) is
+refused as a displacement, also when picked with ``columns=``.
+
 **Refused**, with a ``ValueError`` that names the file and the line: a missing or
 unrecognised header, a row with the wrong number of values, a value that is not a number
 or is infinite, a time that does not strictly increase, fewer than 10 samples, and a gap in

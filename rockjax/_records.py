@@ -1,24 +1,32 @@
 """Readers for ground-motion acceleration records (pure NumPy).
 
-Three plain-text layouts are supported:
+Five layouts are supported, plain or gzip-compressed, with values separated by blanks,
+tabs, commas or ``;`` and written with decimal points or decimal commas
+(``rockjax/_textfile.py``):
 
 - **PEER AT2** (``format="at2"``): four header lines, the fourth holding the number of
   points and the time step, e.g. ``NPTS=  4000, DT= .01000 SEC`` (old PEER/PEA header),
   ``NPTS =   7500 , DT =   .020 SEC ,`` (NGA-West2 header) or ``4000  0.0100  NPTS, DT``
   (2005 NGA header). The accelerations follow, any number per line, in units of g unless
   the header says otherwise.
-- **Two columns** (``format="two_column"``): time [s] and acceleration, separated by
-  whitespace, tabs or commas, optionally preceded by text header lines. The time step must
-  be uniform.
+- **ESM** and **K-NET/KiK-net** ASCII (``format="esm"``, ``"knet"``): the database
+  formats, read by ``rockjax/_record_formats.py`` (step, units and scale from the header).
+- **Two columns** (``format="two_column"``): time and acceleration, optionally preceded
+  by text header lines. The time is in s unless its column title says otherwise (``t_ms``,
+  ``Time[s]``); its step must be uniform, to within ``time_tolerance`` (a jittering clock
+  is resampled, with a :class:`ResampledWarning`).
 - **One column** (``format="one_column"``): one acceleration per line, optionally preceded
   by text header lines; the time step must be given with ``dt=``.
 
+Formats recognised but not read (COSMOS, binaries, workbooks) are named as unsupported.
+
 Units: g, m/s2, cm/s2, gal, mm/s2 or in/s2, in any spelling of the unit table
 (:data:`rockjax.UNITS`: ``m/s^2``, ``cm/sec/sec``, ``Gal``, ...). A file that states its
-units (AT2 ``UNITS OF G``, ``in units of cm/sec/sec``, a column title ``Accel[gal]``) is
-read in those units; ``units=`` may repeat them (in any spelling of the same size) but
-never contradict them (a ValueError names both). ``Record.units_source`` says where the
-units came from.
+units (AT2 ``UNITS OF G``, ``in units of cm/sec/sec``, a column title ``Accel[gal]`` or
+``accel_cm/s2``, ESM's ``UNITS:``; K-NET is in gal) is read in those units; ``units=`` may
+repeat them (in any spelling of the same size) but never contradict them (a
+ParameterError names both). ``Record.units_source`` says where the units came from. A PGA
+above 5 g is refused as implausible (``check_plausible=False`` reads it).
 
 Every record is returned as a :class:`Record` in SI units (m/s²). The first sample is
 taken to be at ``t = 0`` of the simulation: a two-column record whose time column starts at

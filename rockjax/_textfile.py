@@ -157,7 +157,10 @@ def normalize_rows(lines: list[str], sep: str = " ") -> tuple[list[str], Dialect
     """(`lines` with every row that is not a comment (``#``) rewritten as its fields joined
     by `sep`, with decimal points; the `Dialect` found). Files whose rows are already
     separated by `sep` (or, for ``sep=" "``, by blanks or commas) with decimal points come
-    back unchanged."""
+    back unchanged, and so do files without a row of numbers only (rows with a text
+    column, which only comma-separated traces may have)."""
+    if not _data_rows(lines, limit=1):  # no row of numbers only (a text column): as is
+        return lines, Dialect()
     dialect = sniff(lines)
     plain = dialect.delimiter != ";" and not dialect.decimal_comma
     if plain and (sep == " " or dialect.delimiter == sep):

@@ -83,6 +83,11 @@ def test_normalize_rows_leaves_plain_files_alone():
     assert out == ["t,u_mm", "0.0,1.5", "# note; here", "0.01,-2.25"] and d.note
 
 
+def test_normalize_rows_leaves_rows_with_text_alone():
+    lines = ["index,t,u_mm,comment", "0,0,100,ok 0", "1,0.01,90,ok 1"]
+    assert datasets.normalize_rows(lines, ",")[0] is lines
+
+
 def test_read_text_gzip_and_binaries(tmp_path):
     p = tmp_path / "a.txt.gz"
     p.write_bytes(gzip.compress("\ufeffé 1\n".encode()))

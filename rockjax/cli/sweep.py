@@ -68,7 +68,8 @@ FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scale
          "tail": "--tail", "structure": "--structure", "records": "--record"}
 
 #: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
-RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
+RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc", ".asc", ".gz",  # .asc: ESM
+                   *(f".{c}{n}" for c in ("ew", "ns", "ud") for n in ("", "1", "2")))  # K-NET
 
 
 # ------------------------------------------------------------------------------ parser
@@ -122,7 +123,7 @@ def _add_input_arguments(w):
         metavar="FILE[:UNITS]|DIR",
         help="ground-motion record file, repeatable (at least one); FILE:g, FILE:m/s2, "
         "FILE:cm/s2 or FILE:gal states its units; a folder takes every record file in it "
-        "(.AT2, .dat, .txt, .csv, .acc), sorted by name",
+        "(.AT2, .dat, .txt, .csv, .acc, ESM .ASC, K-NET .EW/.NS/.UD[12], .gz), sorted by name",
     )
     w.add_argument(
         "--units",

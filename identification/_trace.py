@@ -20,6 +20,16 @@ what was read (:meth:`DecayTrace.info`). ``read_trace(path, columns={"t": "Zeit"
 "Weg_mm"})`` picks the columns by name instead (others are ignored), and ``units={"u":
 "mm"}`` gives units the header does not state.
 
+**Text.** The file may be gzip-compressed, and its values separated by commas, ``;``,
+tabs or blanks, with decimal points or decimal commas (``rockjax.datasets.read_text`` and
+``normalize_rows``, shared with the record reader).
+
+**Plausibility.** A median time step of 0.1 s or more (a time column in ms under a plain
+``t`` title) and a displacement column in mm, cm or um that never reaches 1 mm (metres
+under a ``disp_mm`` title) are refused with a hint on the units, unless
+``check_plausible=False``. A rotation column (``theta``, ``rotation``, or in rad/deg) is
+refused as a displacement, also when picked with ``columns=``.
+
 **Refused**, with a ``ValueError`` that names the file and the line: a missing or
 unrecognised header, a row with the wrong number of values, a value that is not a number
 or is infinite, a time that does not strictly increase, fewer than 10 samples, and a gap in
@@ -302,31 +312,39 @@ class DecayTrace:
         )
 
 
-def _open_text(path):
-    """Open `path` (str, os.PathLike or an importlib.resources Traversable) for reading."""
+def _read_lines(path) -> tuple[list[str], str]:
+    """(the lines of the file at `path` (str, os.PathLike or an importlib.resources
+    Traversable), gzip and ';' / tab / blank separators and decimal commas undone, so
+    that rows are comma-separated with decimal points; a note on what was undone)."""
     if isinstance(path, (str, os.PathLike)):
         p = pathlib.Path(path)
         if not p.is_file():
             if p.exists():
                 raise ValueError(f"{p}: not a regular file")
             raise FileNotFoundError(f"decay trace file not found: {p}")
-        return open(p, encoding="utf-8-sig", newline=None)
-    if hasattr(path, "open") and hasattr(path, "is_file"):  # importlib.resources Traversable
+    elif hasattr(path, "read_bytes") and hasattr(path, "is_file"):  # a Traversable
         if not path.is_file():
             raise FileNotFoundError(f"decay trace file not found: {path}")
-        return path.open("r", encoding="utf-8-sig")
-    raise TypeError(f"read_trace: expected a path, got {type(path).__name__}")
+    else:
+        raise TypeError(f"read_trace: expected a path, got {type(path).__name__}")
+    text, compressed = rockjax.datasets.read_text(path)
+    lines, dialect = rockjax.datasets.normalize_rows(text.splitlines(), ",")
+    notes = (["gzip"] if compressed else []) + ([dialect.note] if dialect.note else [])
+    return lines, ", ".join(notes)
 
 
-def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> DecayTrace:
+def read_trace(path, *, columns=None, units=None, drop_nan: bool = False,
+               check_plausible: bool = True) -> DecayTrace:
     """Read a free-vibration decay trace from a CSV file.
 
     Parameters
     ----------
     path : str, os.PathLike or importlib.resources.abc.Traversable
-        The CSV file. Layout: optional leading comment lines starting with ``#``, then the
-        header, then one row per sample. Whitespace around values and blank lines are
-        ignored. Header: time ``t``/``time``, displacement ``u``/``disp``/``displacement``
+        The CSV file, plain or gzip-compressed (any name). Layout: optional leading
+        comment lines starting with ``#``, then the header, then one row per sample.
+        Values may be separated by commas, ``;``, tabs or blanks, and use decimal commas
+        (``0,01;1,5``). Whitespace around values and blank lines are ignored.
+        Header: time ``t``/``time``, displacement ``u``/``disp``/``displacement``
         and optionally ``uplift``, in any order, each with an optional unit (``time_s``,
         ``t_ms``, ``disp_mm``, ``u [mm]``, ``u (cm)``; time: s, ms, us, min; length: m,
         cm, mm, um, in); without a unit, SI (s, m).
@@ -340,6 +358,11 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> Dec
     drop_nan : bool
         Drop rows with a missing value (empty, ``nan``, ``NA``) in a used column, with a
         :class:`DroppedRowsWarning` saying how many; default False: refuse them.
+    check_plausible : bool
+        Refuse, with a hint on the units, a median time step of 0.1 s or more (a time
+        column in ms read as s) and a displacement stated in mm, cm or um that never
+        reaches 1 mm (a column in metres under a ``disp_mm`` title); default True. False
+        reads such a trace as it is.
 
     Returns
     -------
@@ -368,8 +391,7 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> Dec
     (1601, 8.0, 'm')
     """
     name = str(path)
-    with _open_text(path) as f:
-        lines = f.read().splitlines()
+    lines, _ = _read_lines(path)
     header_line, layout = _read_header(name, lines, columns, units)
     rows, linenos, dropped = _read_rows(name, lines, header_line, layout, drop_nan)
     if len(rows) < MIN_SAMPLES:
@@ -383,6 +405,8 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> Dec
     si = {ch: _UNITS.to_si(data[:, k], layout.units[ch], _UNITS_OF[ch])
           for k, ch in enumerate(layout.channels)}
     t = si["t"]
+    if check_plausible:
+        _check_plausible(name, layout, t, si["u"])
     gap = _first_gap(t)
     if gap is not None:
         k, step, med = gap
@@ -398,6 +422,38 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False) -> Dec
     return DecayTrace(t=t, u=si["u"], uplift=si.get("uplift"), source=name,
                       columns=layout.names, units=layout.units, units_from=layout.units_from,
                       dropped_lines=dropped)
+
+
+#: a median time step of this many seconds or more is implausible for a decay trace
+MAX_PLAUSIBLE_DT = 0.1
+#: a displacement column in mm, cm or um whose peak stays below this [m] is implausible
+MIN_PLAUSIBLE_PEAK = 1e-3
+
+
+def _check_plausible(name: str, layout, t: np.ndarray, u: np.ndarray) -> None:
+    """TraceError, with a hint on the units, for a time step of seconds or a displacement
+    column in mm (cm, um) that never reaches 1 mm."""
+    off = ("; pass check_plausible=False to read it as it is",
+           "; pass --no-plausibility-check to read it as it is")
+    dt = float(np.median(np.diff(t)))
+    if dt >= MAX_PLAUSIBLE_DT:
+        col, unit = layout.names["t"], layout.units["t"]
+        msg = (f"column {col!r}: a time step of {dt:g} s (read in {unit}, "
+               f"{layout.units_from['t']}) is implausible for a decay trace; if the column "
+               f"is in milliseconds (a step of {dt * 1e-3:g} s), name it t_ms or pass ")
+        raise TraceError(f"{name}: {msg}units={{'t': 'ms'}}{off[0]}",
+                         f"{name}: {msg}--units t=ms{off[1]}")
+    unit = layout.units["u"]
+    peak = float(np.max(np.abs(u)))
+    if unit in ("mm", "cm", "um") and peak < MIN_PLAUSIBLE_PEAK:
+        col = layout.names["u"]
+        size = _UNITS.factor(unit, "length")
+        msg = (f"column {col!r}: the displacement, read in {unit} "
+               f"({layout.units_from['u']}), never exceeds {peak / size:.4g} {unit} "
+               f"({peak * 1e3:.3g} mm), implausible for a rocking decay; if the column "
+               f"holds metres ({peak / size:.4g} m), ")
+        fix = "correct its title (such as disp_m)"
+        raise TraceError(f"{name}: {msg}{fix}{off[0]}", f"{name}: {msg}{fix}{off[1]}")
 
 
 def _some(items, n: int = 5) -> str:
@@ -429,7 +485,17 @@ def _split_unit(cell: str) -> tuple[str, str | None]:
     """(name, unit or None) of a header cell: 'u [mm]', 'u (mm)', 'u[mm]' and 'u_mm' carry
     the unit mm; lower case. An underscore suffix counts only if it is a known unit of time
     or length (`rockjax.UNITS.split_token`)."""
-    return _UNITS.split_token(cell.strip().lower(), ("time", "length"))
+    return _UNITS.split_token(cell.strip().lower(), ("time", "length", "angle"))
+
+
+_ROTATION_NAMES = ("theta", "rotation", "rot", "tilt")
+
+
+def _rotation_message(cell: str) -> str:
+    """Why a rotation column cannot be read as a displacement, and what to do."""
+    return (f"column {cell!r} is a rotation, not a displacement: read_trace reads the top "
+            "displacement u (and the uplift); convert the rotation first, u = H_e sin(theta) "
+            "(rockjax.u_from_theta), and name that column u")
 
 
 def _read_header(name: str, lines: list[str], columns, units) -> tuple[int, _Layout]:
@@ -465,6 +531,8 @@ def _auto_columns(where, raw: str, cells: tuple) -> dict:
     for i, cell in enumerate(cells):
         base, _ = _split_unit(cell)
         ch = next((c for c, names in _NAMES.items() if base in names), None)
+        if ch is None and base in _ROTATION_NAMES:
+            raise _line_error(*where, _rotation_message(cell))
         if ch is None:
             msg = (f"expected header {_EXPECTED_HEADER}, got {raw!r}: column {cell!r} is "
                    "not a time, displacement or uplift column")
@@ -521,6 +589,9 @@ def _channel_units(where, names: dict, units) -> tuple[dict, dict]:
     for ch, cell in names.items():
         _, in_header = _split_unit(cell)
         kind = _UNITS_OF[ch]
+        if ch != "t" and (_UNITS.kind_of(in_header or "") == "angle"
+                          or _split_unit(cell)[0] in _ROTATION_NAMES):
+            raise _line_error(*where, _rotation_message(cell))
         if in_header is not None:
             try:
                 in_header = _UNITS.normalize(in_header, kind)

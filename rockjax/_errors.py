@@ -40,7 +40,10 @@ class ParameterError(ValueError):
         `option` (a command-line option such as ``"--units"``), or in Python syntax
         (``units=...``) when `option` is None."""
         def one(value):
-            return f"{self.param}={value!r}" if option is None else f"{option} {value}"
+            if option is None:
+                return f"{self.param}={value!r}"
+            # a boolean's option is a flag (--no-plausibility-check for False)
+            return option if isinstance(value, bool) else f"{option} {value}"
 
         parts = []
         if self.omit:

@@ -1,24 +1,32 @@
 """Readers for ground-motion acceleration records (pure NumPy).
 
-Three plain-text layouts are supported:
+Five layouts are supported, plain or gzip-compressed, with values separated by blanks,
+tabs, commas or ``;`` and written with decimal points or decimal commas
+(``rockjax/_textfile.py``):
 
 - **PEER AT2** (``format="at2"``): four header lines, the fourth holding the number of
   points and the time step, e.g. ``NPTS=  4000, DT= .01000 SEC`` (old PEER/PEA header),
   ``NPTS =   7500 , DT =   .020 SEC ,`` (NGA-West2 header) or ``4000  0.0100  NPTS, DT``
   (2005 NGA header). The accelerations follow, any number per line, in units of g unless
   the header says otherwise.
-- **Two columns** (``format="two_column"``): time [s] and acceleration, separated by
-  whitespace, tabs or commas, optionally preceded by text header lines. The time step must
-  be uniform.
+- **ESM** and **K-NET/KiK-net** ASCII (``format="esm"``, ``"knet"``): the database
+  formats, read by ``rockjax/_record_formats.py`` (step, units and scale from the header).
+- **Two columns** (``format="two_column"``): time and acceleration, optionally preceded
+  by text header lines. The time is in s unless its column title says otherwise (``t_ms``,
+  ``Time[s]``); its step must be uniform, to within ``time_tolerance`` (a jittering clock
+  is resampled, with a :class:`ResampledWarning`).
 - **One column** (``format="one_column"``): one acceleration per line, optionally preceded
   by text header lines; the time step must be given with ``dt=``.
 
+Formats recognised but not read (COSMOS, binaries, workbooks) are named as unsupported.
+
 Units: g, m/s2, cm/s2, gal, mm/s2 or in/s2, in any spelling of the unit table
 (:data:`rockjax.UNITS`: ``m/s^2``, ``cm/sec/sec``, ``Gal``, ...). A file that states its
-units (AT2 ``UNITS OF G``, ``in units of cm/sec/sec``, a column title ``Accel[gal]``) is
-read in those units; ``units=`` may repeat them (in any spelling of the same size) but
-never contradict them (a ValueError names both). ``Record.units_source`` says where the
-units came from.
+units (AT2 ``UNITS OF G``, ``in units of cm/sec/sec``, a column title ``Accel[gal]`` or
+``accel_cm/s2``, ESM's ``UNITS:``; K-NET is in gal) is read in those units; ``units=`` may
+repeat them (in any spelling of the same size) but never contradict them (a
+ParameterError names both). ``Record.units_source`` says where the units came from. A PGA
+above 5 g is refused as implausible (``check_plausible=False`` reads it).
 
 Every record is returned as a :class:`Record` in SI units (m/s²). The first sample is
 taken to be at ``t = 0`` of the simulation: a two-column record whose time column starts at
@@ -32,17 +40,22 @@ import fractions
 import math
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from . import _units
+from . import _record_formats, _textfile, _units
 from ._errors import ParameterError, Placeholder
 from ._units import G_STANDARD
 
-__all__ = ["G_STANDARD", "Record", "common_time_step", "read_record"]
+__all__ = ["G_STANDARD", "Record", "ResampledWarning", "common_time_step", "read_record"]
 
-_FORMATS = ("at2", "two_column", "one_column")
+_FORMATS = ("at2", "two_column", "one_column", "esm", "knet")
+#: the default tolerance on a jittering time column, as a fraction of the time step
+TIME_TOLERANCE = 1e-3
+#: a PGA above this many g is refused unless check_plausible=False
+MAX_PLAUSIBLE_PGA_G = 5.0
 _ACCEL = "acceleration"
 #: the units of acceleration a record may be in (canonical names of the unit table)
 RECORD_UNITS = _units.names(_ACCEL)
@@ -60,6 +73,10 @@ _UNITS_PHRASE_RE = re.compile(
 )
 # "Accel[g]", "Acceleration (m/s^2)", "a [cm/s2]"
 _UNITS_BRACKET_RE = re.compile(r"[(\[]\s*([A-Za-z][A-Za-z0-9/^*]*)\s*[)\]]")
+# "t_ms", "time_s", "Time[s]", "t (ms)": the unit of a time column's title
+_TIME_TITLE_RE = re.compile(
+    r"(?<![A-Za-z0-9_])(?:t|time|zeit|tiempo|tempo)\s*(?:_([A-Za-zµμ]+)\b|[\[(]\s*([A-Za-zµμ]+)"
+    r"\s*[\])])", re.IGNORECASE)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -201,6 +218,13 @@ def _units_from_header(header: str, source: str) -> tuple[str, str] | None:
             while start > 0 and (header[start - 1].isalnum() or header[start - 1] in "_."):
                 start -= 1
             found.append((kind, token, header[start : m.end()].strip()))
+    for tok in re.split(r"[\s,;]+", header):  # "accel_cm/s2", "acc_gal", "a_g"
+        if "[" in tok or "(" in tok:
+            continue
+        _, unit = _units.split_token(tok)
+        kind = None if unit is None else _classify_unit_token(unit, phrase=False)
+        if kind is not None:
+            found.append((kind, unit, tok))
     if not found:
         return None
     bad = [tok for kind, tok, _ in found if kind == "unsupported"]
@@ -247,6 +271,16 @@ def _resolve_units(
         f"{source}: the units of the acceleration are not stated in the file",
         param="units", choices=("g", "m/s2"),
     )
+
+
+def _time_unit_from_header(header: str, source: str) -> str:
+    """The unit of the time column that the header's column titles state (``t_ms``,
+    ``time_s``, ``Time[s]``): a canonical unit of time, ``"s"`` when none is stated."""
+    for m in _TIME_TITLE_RE.finditer(header):
+        unit = m.group(1) or m.group(2)
+        if _units.kind_of(unit) == "time":
+            return _units.normalize(unit, "time")
+    return "s"
 
 
 def _tokens(line: str) -> list[str]:
@@ -366,7 +400,17 @@ def _read_columns(
     return np.asarray(rows, dtype=np.float64).reshape(-1, ncols), linenos, header
 
 
-def _uniform_dt(t: np.ndarray, linenos: list[int], source: str) -> float:
+class ResampledWarning(UserWarning):
+    """`read_record` put a record whose time column jitters (within `time_tolerance`) on a
+    uniform grid; the message gives the largest deviation and the step."""
+
+
+def _regular(t: np.ndarray, accel: np.ndarray, linenos: list[int], source: str,
+             tolerance: float) -> tuple[float, np.ndarray]:
+    """(dt, accel on a uniform grid from t[0]) of a two-column record: a time column
+    uniform to 1e-6 of its step is taken as it is; one that jitters by up to `tolerance`
+    x the step is resampled (linear interpolation) with a `ResampledWarning`; beyond that a
+    ParameterError names the line, the deviation and the tolerance."""
     d = np.diff(t)
     bad = np.flatnonzero(d <= 0.0)
     if bad.size:
@@ -376,16 +420,35 @@ def _uniform_dt(t: np.ndarray, linenos: list[int], source: str) -> float:
             f"(t={float(t[i + 1])!r} s after t={float(t[i])!r} s)"
         )
     dt_med = float(np.median(d))
-    dev = np.abs(d - dt_med)
-    bad = np.flatnonzero(dev > 1e-6 * dt_med + 1e-9)
-    if bad.size:
-        i = int(bad[0])
-        raise ValueError(
-            f"{source}, line {linenos[i + 1]}: non-uniform time step: "
-            f"step {float(d[i]):.10g} s from t={float(t[i]):.10g} s differs from the median "
-            f"step {dt_med:.10g} s"
-        )
-    return float((t[-1] - t[0]) / (t.size - 1))
+    if not np.any(np.abs(d - dt_med) > 1e-6 * dt_med + 1e-9):
+        return float((t[-1] - t[0]) / (t.size - 1)), accel
+    index = np.arange(t.size, dtype=np.float64)
+    slope, intercept = np.polyfit(index, t, 1)  # the clock's step and start, fitted
+    dev = np.abs(t - (intercept + slope * index)) / slope
+    i = int(np.argmax(dev))
+    worst = float(dev[i])
+    if worst > tolerance:
+        off = np.flatnonzero(np.abs(d - dt_med) > 2.0 * tolerance * dt_med)
+        k = int(off[0]) if off.size else max(i - 1, 0)
+        raise ParameterError(
+            f"{source}, line {linenos[k + 1]}: non-uniform time step: step "
+            f"{float(d[k]):.10g} s from t={float(t[k]):.10g} s differs from the median step "
+            f"{dt_med:.10g} s; the time column is {worst:.3g} of a step off a uniform clock "
+            f"(at line {linenos[i]}), more than the tolerance time_tolerance={tolerance:g} "
+            "(a jitter within it is resampled)",
+            param="time_tolerance", choices=(float(f"{worst * 1.01:.2g}"),))
+    # the shortest decimal step that stays within half the tolerance over the record
+    dt = next(c for c in (float(f"{slope:.{k}g}") for k in range(1, 18))
+              if abs(c - slope) * (t.size - 1) <= 0.5 * tolerance * slope)
+    grid = t[0] + dt * index  # the same number of samples; np.interp holds the last value
+    warnings.warn(
+        f"{source}: the time column jitters by up to {worst:.3g} of its step (tolerance "
+        f"{tolerance:g}); resampled onto a uniform step of {dt:g} s by linear interpolation",
+        ResampledWarning, stacklevel=4)
+    return dt, np.interp(grid, t, accel)
+
+
+_READS = "PEER AT2, ESM, K-NET/KiK-net, two columns (t, a) or one column (a)"
 
 
 def _detect_format(lines: list[str], path: Path, source: str) -> str:
@@ -393,6 +456,13 @@ def _detect_format(lines: list[str], path: Path, source: str) -> str:
         return "at2"
     if len(lines) >= 4 and _match_npts_dt(lines[3]) is not None:
         return "at2"
+    if _record_formats.is_knet(lines):
+        return "knet"
+    if _record_formats.is_esm(lines):
+        return "esm"
+    named = _record_formats.unsupported_format(lines)
+    if named is not None:
+        raise ValueError(f"{source}: unsupported format: {named}; rockjax reads {_READS}")
     for lineno, line in enumerate(lines, start=1):
         toks = _tokens(line)
         if not toks:
@@ -405,76 +475,34 @@ def _detect_format(lines: list[str], path: Path, source: str) -> str:
         if len(vals) == 1:
             return "one_column"
         raise ParameterError(
-            f"{source}, line {lineno}: cannot detect the file format from {len(vals)} values "
-            "per line (a record file is PEER AT2, two columns (t, a) or one column (a))",
-            param="format", choices=_FORMATS,
+            f"{source}, line {lineno}: cannot detect the file format from {len(vals)} "
+            f"values per line: unsupported format (rockjax reads {_READS})",
+            param="format", choices=_FORMATS[:3],
         )
     raise ValueError(f"{source}: no numeric data found (empty file or header only)")
 
 
-def record_format(path: str | os.PathLike[str]) -> str:
-    """The layout of a record file as `read_record` detects it: ``"at2"``,
-    ``"two_column"`` or ``"one_column"`` (ValueError or OSError as `read_record`)."""
-    source = os.fspath(path)
-    text = Path(source).read_text(encoding="utf-8", errors="replace")
+def _file_lines(source: str) -> tuple[list[str], str]:
+    """(the lines of a record file, gzip and ';' / decimal commas undone; a note on what
+    was undone, "" for a plain text file)."""
+    text, compressed = _textfile.read_text(source)
     if not text.strip():
         raise ValueError(f"{source}: file is empty (no data)")
-    return _detect_format(text.splitlines(), Path(source), source)
+    lines, dialect = _textfile.normalize_rows(text.splitlines(), " ")
+    notes = (["gzip"] if compressed else []) + ([dialect.note] if dialect.note else [])
+    return lines, ", ".join(notes)
 
 
-def read_record(
-    path: str | os.PathLike[str],
-    *,
-    units: str | None = None,
-    dt: float | None = None,
-    format: str | None = None,
-) -> Record:
-    """Read a ground-acceleration record from a text file.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        File to read.
-    units : str, optional
-        Units of the acceleration values in the file: ``"g"``, ``"m/s2"``, ``"cm/s2"``,
-        ``"gal"``, ``"mm/s2"`` or ``"in/s2"``, in any spelling of the unit table
-        :data:`rockjax.UNITS` (``"m/s^2"``, ``"mps2"``, ``"cm/sec/sec"``, ``"Gal"``). A
-        file that states its units (``UNITS OF G`` in an AT2 header, ``Accel[g]`` in a
-        column header) is read in those units, and `units` must then agree with them
-        (the same size: ``"gal"`` and ``"cm/s2"`` agree): a contradiction is a ValueError
-        naming both. When
-        the file states nothing: `units` is used; an AT2 file without it is in g (PEER's
-        convention); a one- or two-column file without it is a ValueError asking for
-        ``units=``. ``Record.units_source`` records which rule applied.
-    dt : float, optional
-        Time step [s], > 0. Required for one-column files. For AT2 and two-column files
-        the step comes from the file; a ``dt`` passed as well must agree with it.
-    format : {"at2", "two_column", "one_column"}, optional
-        File layout; detected when omitted (``.AT2`` suffix or an ``NPTS=..., DT=...``
-        fourth line means AT2, otherwise the number of values on the first numeric line).
-
-    Returns
-    -------
-    Record
-        ``accel`` in m/s² (values in g are multiplied by ``G_STANDARD`` = 9.80665 m/s²,
-        values in cm/s2 or gal by 0.01, and so on: :data:`rockjax.UNITS`),
-        first sample at ``t = 0``. A two-column record whose time starts at ``t0 != 0``
-        is shifted to start at 0, and its ``dt`` is ``(t[-1] - t[0]) / (n - 1)``.
-
-    Raises
-    ------
-    FileNotFoundError
-        If `path` does not exist.
-    ValueError
-        For unknown `units` or `format`, `units` that contradict the file's header, a
-        missing or non-positive `dt`, and malformed
-        files: no data, non-numeric text or NaN/inf in the data section (the message
-        names the line), an NPTS count that does not match the values found, a time
-        column that is not strictly increasing or not uniform, or fewer than 2 samples.
-        Messages name the file.
-    """
+def record_format(path: str | os.PathLike[str]) -> str:
+    """The layout of a record file as `read_record` detects it: ``"at2"``,
+    ``"two_column"``, ``"one_column"``, ``"esm"`` or ``"knet"`` (ValueError or OSError as
+    `read_record`)."""
     source = os.fspath(path)
-    p = Path(source)
+    return _detect_format(_file_lines(source)[0], Path(source), source)
+
+
+def _check_args(units, dt, format, time_tolerance):
+    """The arguments of `read_record`, checked and normalized."""
     if units is not None:
         units = _normalize_units(units)
     if dt is not None:
@@ -492,49 +520,162 @@ def read_record(
                 f"unknown format={format!r}; expected one of {', '.join(map(repr, _FORMATS))}",
                 param="format")
         format = fmt
+    tol = float(time_tolerance)
+    if not (math.isfinite(tol) and 0.0 <= tol < 0.5):
+        raise ParameterError(f"time_tolerance must be in [0, 0.5) (a fraction of the time "
+                             f"step), got {time_tolerance!r}", param="time_tolerance")
+    return units, dt, format, tol
+
+
+def _read_database(format, lines, source, units, dt):
+    """(dt, values, (units, where from), description) of an ESM or K-NET file."""
+    reader = _record_formats.read_esm if format == "esm" else _record_formats.read_knet
+    dt_file, values, stated, description = reader(lines, source)
+    _check_dt_arg(dt, dt_file, source)
+    try:
+        unit = _units.normalize(stated, _ACCEL)
+    except _units.UnitError:
+        raise ValueError(f"{source}: the {format.upper()} header states units {stated!r}, "
+                         "which are not a unit of acceleration") from None
+    resolved = _resolve_units((unit, repr(f"UNITS: {stated}")), units, source, None)
+    return dt_file, values, resolved, description
+
+
+def _read_table(format, lines, source, units, dt, tolerance):
+    """(dt, values, (units, where from), description) of a one- or two-column file."""
+    ncols = 2 if format == "two_column" else 1
+    if ncols == 1 and dt is None:
+        raise ParameterError(f"{source}: a one-column file has no time information",
+                             param="dt", choices=(Placeholder("time step in s"),))
+    data, linenos, header = _read_columns(lines, source, ncols)
+    accel = data[:, -1]
+    if accel.size < 2:
+        raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
+    description = "\n".join(header).strip()
+    if ncols == 2:
+        t = _units.to_si(data[:, 0], _time_unit_from_header(description, source), "time")
+        dt_file, accel = _regular(t, accel, linenos, source, tolerance)
+        _check_dt_arg(dt, dt_file, source)
+    else:
+        dt_file = float(dt)  # type: ignore[arg-type]
+    resolved = _resolve_units(_units_from_header(description, source), units, source, None)
+    return dt_file, accel, resolved, description
+
+
+def _check_pga(accel: np.ndarray, units: str, units_source: str, source: str) -> None:
+    """ParameterError when the PGA exceeds MAX_PLAUSIBLE_PGA_G, with the units' hint."""
+    pga_g = float(np.max(np.abs(accel))) / G_STANDARD
+    if pga_g <= MAX_PLAUSIBLE_PGA_G:
+        return
+    peak = pga_g * G_STANDARD / _units.factor(units, _ACCEL)
+    other = [u for u in ("g", "m/s2", "cm/s2", "mm/s2")
+             if 0.001 <= peak * _units.factor(u, _ACCEL) / G_STANDARD <= 2.0 and u != units]
+    hint = ("; read in other units the PGA would be " + ", ".join(
+        f"{peak * _units.factor(u, _ACCEL) / G_STANDARD:.3g} g ({u})" for u in other)
+            if other else "")
+    raise ParameterError(
+        f"{source}: PGA {pga_g:.3g} g is implausible for a ground motion (more than "
+        f"{MAX_PLAUSIBLE_PGA_G:g} g): the values peak at {peak:.4g}, read as {units} "
+        f"({units_source}){hint}; check the units, or read it as it is",
+        param="check_plausible", choices=(False,))
+
+
+def read_record(
+    path: str | os.PathLike[str],
+    *,
+    units: str | None = None,
+    dt: float | None = None,
+    format: str | None = None,
+    time_tolerance: float = TIME_TOLERANCE,
+    check_plausible: bool = True,
+) -> Record:
+    """Read a ground-acceleration record from a text file (plain or gzip-compressed).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to read: plain text or gzip-compressed (any name; recognised by its first
+        bytes). Values may be separated by blanks, tabs, commas or ``;``, and use decimal
+        commas (``0,01;-0,5``).
+    units : str, optional
+        Units of the acceleration values in the file: ``"g"``, ``"m/s2"``, ``"cm/s2"``,
+        ``"gal"``, ``"mm/s2"`` or ``"in/s2"``, in any spelling of the unit table
+        :data:`rockjax.UNITS` (``"m/s^2"``, ``"mps2"``, ``"cm/sec/sec"``, ``"Gal"``). A
+        file that states its units (``UNITS OF G`` in an AT2 header, ``Accel[g]`` or
+        ``accel_cm/s2`` in a column header, ``UNITS: cm/s^2`` in an ESM header; K-NET is
+        in gal) is read in those units, and `units` must then agree with them
+        (the same size: ``"gal"`` and ``"cm/s2"`` agree): a contradiction is a
+        ParameterError naming both. When the file states nothing: `units` is used; an AT2
+        file without it is in g (PEER's convention); a one- or two-column file without it
+        is a ValueError asking for ``units=``. ``Record.units_source`` records which rule
+        applied.
+    dt : float, optional
+        Time step [s], > 0. Required for one-column files. For the other layouts the step
+        comes from the file; a ``dt`` passed as well must agree with it.
+    format : {"at2", "two_column", "one_column", "esm", "knet"}, optional
+        File layout; detected when omitted (``.AT2`` suffix or an ``NPTS=..., DT=...``
+        fourth line means AT2; ``Origin Time`` first, K-NET; ``SAMPLING_INTERVAL_S:`` and
+        ``NDATA:`` in the header, ESM; otherwise the number of values on the first
+        numeric line). A format recognised but not read (COSMOS, binary SAC or miniSEED,
+        Excel workbooks, ...) is a ValueError saying "unsupported format" and naming it.
+    time_tolerance : float
+        A two-column file's time column (in s, or as its title says: ``t_ms``,
+        ``Time[s]``) must have a uniform step. One whose steps differ from their median by
+        at most ``time_tolerance`` x the step (default 1e-3; a clock's jitter) is
+        resampled onto a uniform step by linear interpolation, with a
+        :class:`ResampledWarning`; beyond it, a ParameterError states the deviation and the
+        tolerance.
+    check_plausible : bool
+        Refuse a PGA above 5 g (a ParameterError that gives the PGA the values would have
+        in other units); default True. False reads such a record as it is.
+
+    Returns
+    -------
+    Record
+        ``accel`` in m/s² (values in g are multiplied by ``G_STANDARD`` = 9.80665 m/s²,
+        values in cm/s2 or gal by 0.01, and so on: :data:`rockjax.UNITS`),
+        first sample at ``t = 0``. A two-column record whose time starts at ``t0 != 0``
+        is shifted to start at 0, and its ``dt`` is ``(t[-1] - t[0]) / (n - 1)``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If `path` does not exist.
+    ValueError
+        For unknown `units` or `format`, `units` that contradict the file's header, a
+        missing or non-positive `dt`, an implausible PGA, an unsupported format, and
+        malformed files: no data, non-numeric text or NaN/inf in the data section (the
+        message names the line), an NPTS (NDATA) count that does not match the values
+        found, a time column that is not strictly increasing or not uniform within
+        `time_tolerance`, or fewer than 2 samples. Messages name the file.
+    """
+    source = os.fspath(path)
+    p = Path(source)
+    units, dt, format, tolerance = _check_args(units, dt, format, time_tolerance)
     if not p.exists():
         raise FileNotFoundError(f"ground-motion record not found: {source}")
     if p.is_dir():
         raise IsADirectoryError(f"ground-motion record path is a directory: {source}")
-
-    text = p.read_text(encoding="utf-8", errors="replace")
-    lines = text.splitlines()
-    if not text.strip():
-        raise ValueError(f"{source}: file is empty (no data)")
+    lines, note = _file_lines(source)
     if format is None:
         format = _detect_format(lines, p, source)
-
     if format == "at2":
         dt_file, accel, (units, units_source), description = _read_at2(lines, source, units, dt)
+    elif format in ("esm", "knet"):
+        dt_file, accel, (units, units_source), description = _read_database(
+            format, lines, source, units, dt)
     else:
-        ncols = 2 if format == "two_column" else 1
-        if ncols == 1 and dt is None:
-            raise ParameterError(f"{source}: a one-column file has no time information",
-                                 param="dt", choices=(Placeholder("time step in s"),))
-        data, linenos, header = _read_columns(lines, source, ncols)
-        accel = data[:, -1]
-        if accel.size < 2:
-            raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
-        if ncols == 2:
-            dt_file = _uniform_dt(data[:, 0], linenos, source)
-            _check_dt_arg(dt, dt_file, source)
-        else:
-            dt_file = float(dt)  # type: ignore[arg-type]
-        description = "\n".join(header).strip()
-        units, units_source = _resolve_units(
-            _units_from_header(description, source), units, source, None
-        )
+        dt_file, accel, (units, units_source), description = _read_table(
+            format, lines, source, units, dt, tolerance)
     if accel.size < 2:
         raise ValueError(f"{source}: a record needs at least 2 samples, found {accel.size}")
-    scale = _units.factor(units, _ACCEL)
-    return Record(
-        dt=dt_file,
-        accel=accel * scale,
-        source=source,
-        description=description,
-        units_in_file=units,
-        units_source=units_source,
-    )
+    accel = accel * _units.factor(units, _ACCEL)
+    if check_plausible:
+        _check_pga(accel, units, units_source, source)
+    if note:
+        description = f"{description}\n(read from: {note})".strip()
+    return Record(dt=dt_file, accel=accel, source=source, description=description,
+                  units_in_file=units, units_source=units_source)
 
 
 #: a common step more than this many times finer than the finest record is refused

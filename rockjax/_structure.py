@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from . import _structure_units
 from ._config import ensure_x64
 from ._errors import ParameterError
 
@@ -80,12 +81,20 @@ class RockingStructure(eqx.Module):
 
     # ------------------------------------------------------------------ loading
     @classmethod
-    def from_toml(cls, path: str | pathlib.Path) -> RockingStructure:
-        """Read a structure from a TOML file with a `[structure]` table (SI units).
+    def from_toml(cls, path: str | pathlib.Path, *,
+                  check_plausible: bool = True) -> RockingStructure:
+        """Read a structure from a TOML file with a `[structure]` table.
 
         The keys are the field names `m_e, m_b, H_e, H_b, B, I_eg, I_bg, k_f` and the
-        optional `g`. See `data/mcmanus_column.toml` for an example. Unknown or missing keys
-        raise `ValueError` naming them.
+        optional `g`, in SI units unless the file says otherwise: a `units` key (at the
+        top of the file or in the table) names a system of units (see
+        `rockjax._structure_units`: ``"m"``, ``"cm"``, ``"mm"``, ``"in"``, ``"N-mm-t"``,
+        ``"kN-m-t"``), and a field may carry its own unit as a suffix (``B_mm = 285``,
+        ``"k_f_kN/m" = 550``, ``m_e_t = 0.1226``). The structure is in SI whatever the
+        file's units. See `data/mcmanus_column.toml` for an example. Unknown or missing
+        keys raise `ValueError` naming them; dimensions implausible in SI (a base wider
+        than 100 m, a height over 500 m) raise a `ParameterError` with a hint on
+        millimetres unless `check_plausible` is False.
         """
         path = pathlib.Path(path)
         if path.is_dir():
@@ -99,24 +108,24 @@ class RockingStructure(eqx.Module):
             raise ValueError(f"{path}: not valid TOML ({e})") from None
         except UnicodeDecodeError as e:
             raise ValueError(f"{path}: not valid TOML (not UTF-8 text: {e.reason})") from None
-        return cls.from_dict(doc.get("structure", doc), source=str(path))
+        table = doc.get("structure", doc)
+        if "structure" in doc and "units" in doc and isinstance(table, dict):
+            if "units" in table and table["units"] != doc["units"]:
+                raise ValueError(f"{path}: units {doc['units']!r} at the top of the file but "
+                                 f"{table['units']!r} in [structure]")
+            table = {**table, "units": doc["units"]}
+        return cls.from_dict(table, source=str(path), check_plausible=check_plausible)
 
     @classmethod
-    def from_dict(cls, d: dict, *, source: str = "structure") -> RockingStructure:
-        """Build a structure from a mapping of field names to numbers (SI units)."""
+    def from_dict(cls, d: dict, *, source: str = "structure",
+                  check_plausible: bool = True) -> RockingStructure:
+        """Build a structure from a mapping of field names to numbers: SI units, or those
+        of a `units` key and of field suffixes as in `from_toml` (the same checks)."""
         if not isinstance(d, dict):
             raise ValueError(f"{source}: expected a table of structure parameters")
-        unknown = sorted(set(d) - set(_FIELDS))
-        if unknown:
-            raise ValueError(f"{source}: unknown parameter(s) {', '.join(unknown)}")
-        missing = [k for k in _FIELDS[:-1] if k not in d]
-        if missing:
-            raise ValueError(f"{source}: missing parameter(s) {', '.join(missing)}")
-        values = {}
-        for k, v in d.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ValueError(f"{source}: parameter {k} must be a number, got {v!r}")
-            values[k] = float(v)
+        values = _structure_units.to_si(d, source)
+        if check_plausible:
+            _structure_units.check_plausible(values, d, source)
         return cls(**values)
 
     def to_dict(self) -> dict[str, float]:

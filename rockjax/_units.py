@@ -7,11 +7,12 @@ other units; this module converts them. The table, by kind (canonical name: size
 - ``"acceleration"`` [m/s²]: ``g`` (9.80665, standard gravity), ``m/s2``, ``cm/s2``
   (0.01), ``gal`` (0.01, the same size as cm/s2), ``mm/s2`` (0.001), ``in/s2`` (0.0254)
 - ``"time"`` [s]: ``s``, ``ms`` (0.001), ``us`` (1e-6), ``min`` (60)
+- ``"angle"`` [rad]: ``rad``, ``mrad`` (0.001), ``deg`` (pi/180)
 
 Spellings are case-insensitive and blanks are ignored. Besides the canonical names a unit
 may be written as a header writes it: ``m/s^2``, ``m/s**2``, ``m/s²``, ``m/s/s``,
 ``m/sec2``, ``m/sec^2``, ``m/sec/sec``, ``mps2`` (likewise for cm, mm and in), ``Gal`` /
-``gals``, ``sec``, ``µs``, ``µm``.
+``gals``, ``sec``, ``µs``, ``µm``, ``degree`` / ``degrees`` / ``°``, ``radian(s)``.
 
 The public face is :data:`rockjax.UNITS` (a :class:`UnitTable`) and
 :class:`rockjax.UnitError`::
@@ -29,6 +30,7 @@ The public face is :data:`rockjax.UNITS` (a :class:`UnitTable`) and
 
 from __future__ import annotations
 
+import math
 import re
 import types
 from collections.abc import Iterator, Mapping
@@ -50,9 +52,10 @@ _TABLE = {
         "in/s2": 0.0254,
     },
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0},
+    "angle": {"rad": 1.0, "mrad": 1e-3, "deg": math.pi / 180.0},
 }
 KINDS = tuple(_TABLE)
-_SI = {"length": "m", "acceleration": "m/s2", "time": "s"}
+_SI = {"length": "m", "acceleration": "m/s2", "time": "s", "angle": "rad"}
 
 # the ways a header spells "per second squared" after a length unit
 _PER_S2 = ("/s2", "/s^2", "/s**2", "/s/s", "/sec2", "/sec^2", "/sec**2", "/sec/sec", "ps2")
@@ -71,6 +74,11 @@ def _spellings() -> dict[str, tuple[str, str]]:
         "μs": ("time", "us"),  # Greek mu
         "µm": ("length", "um"),
         "μm": ("length", "um"),
+        "degree": ("angle", "deg"),
+        "degrees": ("angle", "deg"),
+        "°": ("angle", "deg"),
+        "radian": ("angle", "rad"),
+        "radians": ("angle", "rad"),
     })
     return out
 

@@ -24,6 +24,10 @@ Resolution order (see `el_centro_path`):
 The cache directory is ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax``, else
 ``~/.cache/rockjax``.
 
+**Text files.** `read_text` and `normalize_rows` are the readers' common ground (the record
+reader and ``identification.read_trace``): gzip-compressed files, byte-order marks,
+``;``/tab/comma/blank separators and decimal commas.
+
 The files that rockjax does ship (the repository's ``data/`` folder, installed as the
 package ``rockjax._data``: the Table 1 structure and the synthetic decay traces) are found
 with `packaged_data_path`.
@@ -40,6 +44,7 @@ import urllib.request
 
 from rockjax._records import read_record, Record
 from rockjax._structure import _data_file
+from rockjax._textfile import normalize_rows, read_text
 
 __all__ = [
     "EL_CENTRO_FILENAME",
@@ -48,7 +53,9 @@ __all__ = [
     "cache_dir",
     "el_centro",
     "el_centro_path",
+    "normalize_rows",
     "packaged_data_path",
+    "read_text",
     "synthetic_ground_motion",
 ]
 

@@ -161,11 +161,26 @@ def _scales(text):
 
 
 # ------------------------------------------------------------------------ input checks
-def _load_structure(path):
+def _load_structure(path, check_plausible=True):
     """The structure of a TOML file, or the Table 1 McManus column when `path` is None."""
     if path is None:
         return rockjax.mcmanus_column()
-    return rockjax.RockingStructure.from_toml(path)
+    return rockjax.RockingStructure.from_toml(path, check_plausible=check_plausible)
+
+
+#: the option that turns off the readers' plausibility checks (check_plausible=False)
+PLAUSIBILITY_FLAG = "--no-plausibility-check"
+
+
+def add_plausibility_argument(parser):
+    """--no-plausibility-check: read inputs that look like wrong units as they are (a PGA
+    over 5 g, a decay trace sampled in seconds, a structure a kilometre tall)."""
+    parser.add_argument(
+        PLAUSIBILITY_FLAG, dest="check_plausible", action="store_false",
+        help="read inputs that look like wrong units as they are (a PGA over 5 g, a decay "
+        "trace with a time step of seconds, a structure wider than 100 m or taller than "
+        "500 m); default: refuse them with a hint on the units",
+    )
 
 
 def _check_r(r):
@@ -295,7 +310,8 @@ def record_line(info):
 #: the library parameters that most commands set, and the option that sets each; a command
 #: adds its own (`FLAGS` in its module)
 COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t1",
-                "method": "--method", "substeps": "--substeps"}
+                "method": "--method", "substeps": "--substeps",
+                "check_plausible": PLAUSIBILITY_FLAG}
 #: the options of a ground-motion record (read_record's and GroundMotion's parameters)
 RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale"}
 

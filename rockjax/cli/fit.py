@@ -23,6 +23,7 @@ from ._common import (
     _positive_float,
     _starts,
     add_model_arguments,
+    add_plausibility_argument,
     CLIError,
     model_info,
     model_line,
@@ -107,6 +108,7 @@ def add_parser(subparsers):
         metavar="t=UNIT,u=UNIT[,uplift=UNIT]",
         help="units of columns whose header states none, such as u=mm (default SI)",
     )
+    add_plausibility_argument(f)
     f.add_argument("--drop-nan", action="store_true",
                    help="drop rows with missing (NaN) values, with a warning (default: refuse)")
     f.add_argument(
@@ -369,7 +371,8 @@ def _read(args, path):
         warnings.simplefilter("always", identification.DroppedRowsWarning)
         try:
             trace = identification.read_trace(path, columns=args.columns,
-                                              units=args.units, drop_nan=args.drop_nan)
+                                              units=args.units, drop_nan=args.drop_nan,
+                                              check_plausible=args.check_plausible)
         except identification.TraceError as e:
             raise CLIError(e.cli_message) from None
     for w in caught:
@@ -389,7 +392,7 @@ def run(args):
     if args.r is not None and not 0.0 < args.r < 1.0:
         raise CLIError(f"--r must lie strictly inside (0, 1) for a fit, got {args.r}")
     _check_model_options(args, identification)
-    s = _load_structure(args.structure)
+    s = _load_structure(args.structure, args.check_plausible)
     if len(args.trace) > 1:
         return _run_joint(args, s, params, identification)
     trace, read_warnings = _read(args, args.trace[0])

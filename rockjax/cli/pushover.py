@@ -16,7 +16,9 @@ from ._common import (
     _positive_float,
     _UNITS,
     _write_csv,
+    add_plausibility_argument,
     CLIError,
+    PLAUSIBILITY_FLAG,
 )
 
 _CURVES = ("u", "simplified", "exact", "numerical")
@@ -26,7 +28,7 @@ CSV_COLUMNS = {"u": "m", "simplified": "N", "exact": "N", "numerical": "N", "the
 
 
 #: the library parameters that the options of `rockjax pushover` set (errors name them)
-FLAGS = {"u": "--umax", "structure": "--structure"}
+FLAGS = {"u": "--umax", "structure": "--structure", "check_plausible": PLAUSIBILITY_FLAG}
 
 def add_parser(subparsers):
     q = subparsers.add_parser(
@@ -37,6 +39,7 @@ def add_parser(subparsers):
         "pushover of the rigid body on two springs.",
     )
     q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
+    add_plausibility_argument(q)
     q.add_argument(
         "--umax",
         type=_positive_float("--umax"),
@@ -86,7 +89,7 @@ def _print_table(derived, curves):
 
 
 def run(args):
-    s = _load_structure(args.structure)
+    s = _load_structure(args.structure, args.check_plausible)
     umax = _umax(s, args.umax)
     _check_png(args.plot)
     _check_out_dir("--out", args.out)

@@ -21,6 +21,7 @@ from ._common import (
     _positive_float,
     _write_csv,
     add_model_arguments,
+    add_plausibility_argument,
     CLIError,
     COMMON_FLAGS,
     fidelity_note,
@@ -50,6 +51,7 @@ def add_parser(subparsers):
         "t a, or one column with --record-dt) [--units g|m/s2|cm/s2|gal|...] [--scale S].",
     )
     m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
+    add_plausibility_argument(m)
     m.add_argument("--u0", type=_finite_float("--u0"), metavar="M", help="release displacement [m]")
     m.add_argument(
         "--v0",
@@ -106,7 +108,8 @@ def _build_excitation(args, s):
             )
         excitation = rockjax.FreeVibration(args.u0, args.v0)
         return excitation, None, {"type": "free_vibration", "u0": args.u0, "v0": args.v0}
-    rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
+    rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt,
+                              check_plausible=args.check_plausible)
     gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
     return gm, gm, {"type": "ground_motion", **record_info(rec, args.scale)}
 
@@ -189,7 +192,7 @@ def _print_summary(args, out):
 
 
 def run(args):
-    s = _load_structure(args.structure)
+    s = _load_structure(args.structure, args.check_plausible)
     _check_png(args.plot)
     _check_out_dir("--out", args.out)
     _check_out_dir("--plot", args.plot)

@@ -19,6 +19,7 @@ from ._common import (
     _scale_list,
     _scale_range,
     add_model_arguments,
+    add_plausibility_argument,
     CLIError,
     COMMON_FLAGS,
     model_info,
@@ -71,6 +72,7 @@ def add_parser(subparsers):
     which.add_argument("--ratios", type=_positive_values("--ratios"), metavar="X",
                        help="the same as omega_p / p (rectangular: p t1), a list or a range")
     q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
+    add_plausibility_argument(q)
     add_model_arguments(q, "model (default rigid_body, the body's own equation)",
                         fidelity=False)
     q.set_defaults(model="rigid_body")
@@ -107,7 +109,7 @@ def _print_report(args, sp, info):
 
 
 def run(args):
-    s = _load_structure(args.structure)
+    s = _load_structure(args.structure, args.check_plausible)
     _check_r(args.r)
     _check_png(args.plot)
     _check_out_dir("--plot", args.plot)

@@ -46,6 +46,7 @@ from ._common import (
     _positive_int,
     _scales,
     add_model_arguments,
+    add_plausibility_argument,
     CLIError,
     COMMON_FLAGS,
     converter,
@@ -67,7 +68,8 @@ FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scale
          "tail": "--tail", "structure": "--structure", "records": "--record"}
 
 #: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
-RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
+RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc", ".asc", ".gz",  # .asc: ESM
+                   *(f".{c}{n}" for c in ("ew", "ns", "ud") for n in ("", "1", "2")))  # K-NET
 
 
 # ------------------------------------------------------------------------------ parser
@@ -113,6 +115,7 @@ def _add_input_arguments(w):
         metavar="FILE.toml",
         help="structure file, repeatable (default: Table 1)",
     )
+    add_plausibility_argument(w)
     w.add_argument(
         "--record",
         action=_InOrder,
@@ -120,7 +123,7 @@ def _add_input_arguments(w):
         metavar="FILE[:UNITS]|DIR",
         help="ground-motion record file, repeatable (at least one); FILE:g, FILE:m/s2, "
         "FILE:cm/s2 or FILE:gal states its units; a folder takes every record file in it "
-        "(.AT2, .dat, .txt, .csv, .acc), sorted by name",
+        "(.AT2, .dat, .txt, .csv, .acc, ESM .ASC, K-NET .EW/.NS/.UD[12], .gz), sorted by name",
     )
     w.add_argument(
         "--units",
@@ -227,12 +230,12 @@ def _check_args(args):
     _check_out_dir("--plot", args.plot)
 
 
-def _sweep_structures(paths):
+def _sweep_structures(paths, check_plausible=True):
     """(structures, labels) of the --structure files, or of Table 1 when there are none."""
     structures = []
     for path in paths or [None]:
         try:
-            structures.append(_load_structure(path))
+            structures.append(_load_structure(path, check_plausible))
         except (ValueError, OSError) as e:
             raise CLIError(f"--structure: {_first_line(e)}") from None
     labels = ["table1"] if paths is None else _unique_labels(paths)
@@ -311,7 +314,7 @@ def _expand_folders(specs):
     return out, skipped
 
 
-def _read_records(specs, default_units, record_dt):
+def _read_records(specs, default_units, record_dt, check_plausible=True):
     """The records, read with the units given for each (else --units before any
     --record, else the file's) and --record-dt for the one-column ones; errors in CLI
     syntax."""
@@ -321,7 +324,8 @@ def _read_records(specs, default_units, record_dt):
         try:
             one_col = record_dt is not None and record_format(spec.path) == "one_column"
             dt = record_dt if one_col else None
-            records.append(rockjax.read_record(spec.path, units=units, dt=dt))
+            records.append(rockjax.read_record(spec.path, units=units, dt=dt,
+                                               check_plausible=check_plausible))
         except (ValueError, OSError) as e:
             hint = ""
             if spec.folder is not None and getattr(e, "param", None) == "units":
@@ -339,7 +343,7 @@ def _sweep_records(args):
     records' common time step is checked here (a one-line error when there is none)."""
     specs, default_units = _record_specs(args.inputs)
     specs, skipped = _expand_folders(specs)
-    records = _read_records(specs, default_units, args.record_dt)
+    records = _read_records(specs, default_units, args.record_dt, args.check_plausible)
     labels = _unique_labels([s.path for s in specs])
     try:
         common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
@@ -574,7 +578,7 @@ def _print_failed_table(scales, struct_labels, failed):
 
 def _read_sweep(args):
     """The sweep's inputs, read and checked (no run yet)."""
-    structures, struct_labels = _sweep_structures(args.structure)
+    structures, struct_labels = _sweep_structures(args.structure, args.check_plausible)
     records, rec_labels, skipped = _sweep_records(args)
     sweep = _Sweep(
         structures=structures,

@@ -8,6 +8,8 @@ puts tests/ on its path first).
   (tests/test_matrix.py; `benchmarks/matrix.py` writes docs/matrix.md from it);
 - `helpers.fit_models`: the synthetic decay traces of the model ladder
   (tests/test_fit_models.py; `benchmarks/fit_models.py`);
+- `helpers.messy`: the messy corpus of issue 24, files with their truth (tests/test_messy.py;
+  `python tests/helpers/messy.py` prints the table);
 - `helpers.lengths`: the lines of code of a function (tests/test_architecture.py;
   `benchmarks/longest_functions.py`).
 """

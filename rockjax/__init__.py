@@ -62,6 +62,7 @@ from ._records import (
     G_STANDARD as G_STANDARD,
     read_record as read_record,
     Record as Record,
+    ResampledWarning as ResampledWarning,
 )
 from ._response import Response as Response, STATUS as STATUS
 from ._simulate import simulate as simulate

@@ -92,11 +92,12 @@ class GroundMotion(AbstractExcitation):
                 raise ValueError(f"{name} must be finite, got {np.asarray(x)}")
 
     @classmethod
-    def from_file(cls, path, *, units=None, scale=1.0, dt=None, format=None):
-        """Read a record file (see `rockjax.read_record`) into a `GroundMotion` [m/s²]."""
+    def from_file(cls, path, *, units=None, scale=1.0, dt=None, format=None, **reader):
+        """Read a record file into a `GroundMotion` [m/s²]: `units`, `dt`, `format` and
+        `**reader` (`time_tolerance`, `check_plausible`) as `rockjax.read_record`."""
         from ._records import read_record
 
-        rec = read_record(path, units=units, dt=dt, format=format)
+        rec = read_record(path, units=units, dt=dt, format=format, **reader)
         return cls(dt=rec.dt, accel=np.asarray(rec.accel), scale=scale)
 
     @classmethod

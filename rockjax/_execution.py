@@ -18,11 +18,12 @@ class Execution:
     - `chunk_size`: runs per compiled call (memory stays bounded); the last chunk is
       padded, so every chunk reuses one compilation. Default: 4096 summaries per device,
       or as many full responses as fit in about 256 MB.
-    - `devices`: how many local devices (from 1 to the number of local devices) to split each chunk over (default: all of
-      `jax.local_devices()`; on a CPU `rockjax.configure()` makes one device per core,
-      unless `XLA_FLAGS`, `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or
-      JAX ran before it: docs/batches.md; without it, a batch on one CPU device of a
-      multi-core machine warns once).
+    - `devices`: how many local devices to split each chunk over, from 1 to the number of
+      local devices (default: all of `jax.local_devices()`; on a CPU
+      `rockjax.configure()` makes one device per core, unless `XLA_FLAGS`,
+      `JAX_NUM_CPU_DEVICES` or `ROCKJAX_CPU_DEVICES` say otherwise or JAX ran before it:
+      docs/batches.md; without it, a batch on one CPU device of a multi-core machine warns
+      once).
     - `progress`: show a tqdm bar on stderr (default None: when there is more than one
       chunk and stderr is a terminal, so logs get no carriage returns).
     - `record_steps`: with a sequence of records, `"common"` (default: every record

@@ -83,31 +83,23 @@ _TIME_TITLE_RE = re.compile(
 class Record:
     """A uniformly sampled ground-acceleration record in SI units.
 
-    The first sample is at ``t = 0`` and sample ``i`` is at ``t = i * dt``.
+    The first sample is at t = 0 and sample i is at t = i dt. Instances compare and hash
+    by identity (`accel` is an array).
 
-    Attributes
-    ----------
-    dt : float
-        Uniform sample step [s], finite and > 0.
-    accel : numpy.ndarray
-        Ground acceleration [m/s²], read-only float64 1-D array, finite, length >= 2.
-    source : str
-        File path (or a description) of where the record came from.
-    description : str
-        Header text of the file, if any (``""`` otherwise).
-    units_in_file : str
-        Units of the values in the file, a canonical name of the unit table (``"g"``,
-        ``"m/s2"``, ``"cm/s2"``, ``"gal"``, ``"mm/s2"``, ``"in/s2"``); ``accel`` is always
-        m/s².
-    units_source : str
-        Where `units_in_file` came from: ``"file header"`` (the file states them; a
-        ``units=`` given as well agreed), ``"given"`` (the file states none, ``units=`` was
-        given), ``"AT2 default"`` (an AT2 header that states none: PEER's g), or ``""`` for
-        a record built from arrays.
+    **Arguments:**
 
-    Notes
-    -----
-    Instances compare and hash by identity (``accel`` is an array).
+    - `dt` [s]: the uniform sample step, finite and > 0.
+    - `accel` [m/s²]: the ground acceleration, a read-only float64 1-D array, finite, of
+      length >= 2.
+    - `source`: the file path (or a description) of where the record came from.
+    - `description`: the header text of the file, if any (`""` otherwise).
+    - `units_in_file`: the units of the values in the file, a canonical name of the unit
+      table (`"g"`, `"m/s2"`, `"cm/s2"`, `"gal"`, `"mm/s2"`, `"in/s2"`); `accel` is
+      always m/s².
+    - `units_source`: where `units_in_file` came from: `"file header"` (the file states
+      them; a `units=` given as well agreed), `"given"` (the file states none, `units=`
+      was given), `"AT2 default"` (an AT2 header that states none: PEER's g), or `""` for
+      a record built from arrays.
     """
 
     dt: float
@@ -591,63 +583,51 @@ def read_record(
 ) -> Record:
     """Read a ground-acceleration record from a text file (plain or gzip-compressed).
 
-    Parameters
-    ----------
-    path : str or os.PathLike
-        File to read: plain text or gzip-compressed (any name; recognised by its first
-        bytes). Values may be separated by blanks, tabs, commas or ``;``, and use decimal
-        commas (``0,01;-0,5``).
-    units : str, optional
-        Units of the acceleration values in the file: ``"g"``, ``"m/s2"``, ``"cm/s2"``,
-        ``"gal"``, ``"mm/s2"`` or ``"in/s2"``, in any spelling of the unit table
-        :data:`rockjax.UNITS` (``"m/s^2"``, ``"mps2"``, ``"cm/sec/sec"``, ``"Gal"``). A
-        file that states its units (``UNITS OF G`` in an AT2 header, ``Accel[g]`` or
-        ``accel_cm/s2`` in a column header, ``UNITS: cm/s^2`` in an ESM header; K-NET is
-        in gal) is read in those units, and `units` must then agree with them
-        (the same size: ``"gal"`` and ``"cm/s2"`` agree): a contradiction is a
-        ParameterError naming both. When the file states nothing: `units` is used; an AT2
-        file without it is in g (PEER's convention); a one- or two-column file without it
-        is a ValueError asking for ``units=``. ``Record.units_source`` records which rule
-        applied.
-    dt : float, optional
-        Time step [s], > 0. Required for one-column files. For the other layouts the step
-        comes from the file; a ``dt`` passed as well must agree with it.
-    format : {"at2", "two_column", "one_column", "esm", "knet"}, optional
-        File layout; detected when omitted (``.AT2`` suffix or an ``NPTS=..., DT=...``
-        fourth line means AT2; ``Origin Time`` first, K-NET; ``SAMPLING_INTERVAL_S:`` and
-        ``NDATA:`` in the header, ESM; otherwise the number of values on the first
-        numeric line). A format recognised but not read (COSMOS, binary SAC or miniSEED,
-        Excel workbooks, ...) is a ValueError saying "unsupported format" and naming it.
-    time_tolerance : float
-        A two-column file's time column (in s, or as its title says: ``t_ms``,
-        ``Time[s]``) must have a uniform step. One whose steps differ from their median by
-        at most ``time_tolerance`` x the step (default 1e-3; a clock's jitter) is
-        resampled onto a uniform step by linear interpolation, with a
-        :class:`ResampledWarning`; beyond it, a ParameterError states the deviation and the
-        tolerance.
-    check_plausible : bool
-        Refuse a PGA above 5 g (a ParameterError that gives the PGA the values would have
-        in other units); default True. False reads such a record as it is.
+    **Arguments:**
 
-    Returns
-    -------
-    Record
-        ``accel`` in m/s² (values in g are multiplied by ``G_STANDARD`` = 9.80665 m/s²,
-        values in cm/s2 or gal by 0.01, and so on: :data:`rockjax.UNITS`),
-        first sample at ``t = 0``. A two-column record whose time starts at ``t0 != 0``
-        is shifted to start at 0, and its ``dt`` is ``(t[-1] - t[0]) / (n - 1)``.
+    - `path`: the file: plain text or gzip-compressed (any name; recognised by its first
+      bytes). Values may be separated by blanks, tabs, commas or `;`, and use decimal
+      commas (`0,01;-0,5`).
+    - `units`: the units of the acceleration values in the file: `"g"`, `"m/s2"`,
+      `"cm/s2"`, `"gal"`, `"mm/s2"` or `"in/s2"`, in any spelling of the unit table
+      `rockjax.UNITS` (`"m/s^2"`, `"mps2"`, `"cm/sec/sec"`, `"Gal"`). A file that states
+      its units (`UNITS OF G` in an AT2 header, `Accel[g]` or `accel_cm/s2` in a column
+      title, `UNITS: cm/s^2` in an ESM header; K-NET is in gal) is read in those units,
+      and `units` must then agree with them (the same size: `"gal"` and `"cm/s2"` agree):
+      a contradiction is a `ParameterError` naming both. When the file states nothing,
+      `units` is used; an AT2 file without it is in g (PEER's convention); a one- or
+      two-column file without it is a `ValueError` asking for `units=`.
+      `Record.units_source` says which rule applied.
+    - `dt` [s]: the time step, > 0. Required for one-column files; for the other layouts
+      the step comes from the file, and a `dt` passed as well must agree with it.
+    - `format`: the layout, `"at2"`, `"two_column"`, `"one_column"`, `"esm"` or
+      `"knet"`; detected when omitted (an `.AT2` suffix or an `NPTS=..., DT=...` fourth
+      line means AT2; `Origin Time` first, K-NET; `SAMPLING_INTERVAL_S:` and `NDATA:` in
+      the header, ESM; otherwise the number of values on the first numeric line). A format
+      recognised but not read (COSMOS, binary SAC or miniSEED, Excel workbooks, ...) is a
+      `ValueError` saying "unsupported format" and naming it.
+    - `time_tolerance`: a two-column file's time column (in s, or as its title says:
+      `t_ms`, `Time[s]`) must have a uniform step. One whose steps differ from their
+      median by at most `time_tolerance` x the step (default 1e-3; a clock's jitter) is
+      resampled onto a uniform step by linear interpolation, with a `ResampledWarning`;
+      beyond it, a `ParameterError` states the deviation and the tolerance.
+    - `check_plausible`: refuse a PGA above 5 g (a `ParameterError` that gives the PGA the
+      values would have in other units); default True. False reads such a record as it
+      is.
 
-    Raises
-    ------
-    FileNotFoundError
-        If `path` does not exist.
-    ValueError
-        For unknown `units` or `format`, `units` that contradict the file's header, a
-        missing or non-positive `dt`, an implausible PGA, an unsupported format, and
-        malformed files: no data, non-numeric text or NaN/inf in the data section (the
-        message names the line), an NPTS (NDATA) count that does not match the values
-        found, a time column that is not strictly increasing or not uniform within
-        `time_tolerance`, or fewer than 2 samples. Messages name the file.
+    **Returns:** a `Record`: `accel` in m/s² (values in g are multiplied by `G_STANDARD`
+    = 9.80665 m/s², values in cm/s2 or gal by 0.01, and so on: `rockjax.UNITS`), first
+    sample at t = 0. A two-column record whose time starts at t0 != 0 is shifted to start
+    at 0, and its `dt` is (t[-1] - t[0]) / (n - 1).
+
+    **Raises:** `FileNotFoundError` if `path` does not exist; `ValueError` (or its
+    subclass `rockjax.ParameterError`, naming the argument) for unknown `units` or
+    `format`, `units` that contradict the file's header, a missing or non-positive `dt`,
+    an implausible PGA, an unsupported format, and malformed files: no data, non-numeric
+    text or NaN/inf in the data section (the message names the line), an NPTS (NDATA)
+    count that does not match the values found, a time column that is not strictly
+    increasing or not uniform within `time_tolerance`, or fewer than 2 samples. Messages
+    name the file.
     """
     source = os.fspath(path)
     p = Path(source)

@@ -9,18 +9,10 @@ from __future__ import annotations
 
 import sys
 
-from rockjax import ParameterError
+from rockjax._cache import enable_compile_cache
 
 from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
-from ._common import (
-    _first_line,
-    _Parser,
-    CLIError,
-    COMMON_FLAGS,
-    enable_compile_cache,
-    EXIT_USAGE,
-    parameter_message,
-)
+from ._common import _Parser, CLIError, COMMON_FLAGS, error_text, EXIT_USAGE
 
 #: the sub-commands, in the order `rockjax --help` lists them
 COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
@@ -93,16 +85,12 @@ def main(argv=None, *, compile_cache=None):
         enable_compile_cache(disabled=not args.compile_cache)
     try:
         return args.func(args)
-    except ParameterError as e:  # the library names the parameter; the command its option
-        print(f"rockjax {args.command}: error: {parameter_message(e, flags(args.command))}",
-              file=sys.stderr)
-        return EXIT_USAGE
     except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
-        print(f"rockjax {args.command}: error: {_first_line(e)}", file=sys.stderr)
-        return EXIT_USAGE
+        # a library error that names its parameter reads with the command's option for it
+        print(f"rockjax {args.command}: error: {error_text(e, flags(args.command))}",
+              file=sys.stderr)
     except OSError as e:
         print(f"rockjax {args.command}: error: {e}", file=sys.stderr)
-        return EXIT_USAGE
-
+    return EXIT_USAGE
 
 __all__ = ["build_parser", "CLIError", "COMMANDS", "EXIT_USAGE", "main"]

@@ -292,8 +292,9 @@ def _argument(flag, value):
 def parameter_message(e, flags):
     """A library error that names its parameter (`e.param`) in the command's terms, `flags`
     mapping the library's parameter names to the command's options: a
-    `rockjax.ParameterError` as "--flag: message; pass --flag value" (the message alone,
-    no advice in Python syntax, when no option sets that parameter); an error with its own
+    `rockjax.ParameterError` as "--flag: message; pass --flag value" ("--flag VALUE:
+    message" when it names the value at fault; the message alone, no advice in Python
+    syntax, when no option sets that parameter); an error with its own
     `advice_for` (`identification.TraceError`) as its message with the advice in CLI
     syntax."""
     flag = flags.get(e.param)
@@ -301,7 +302,10 @@ def parameter_message(e, flags):
         return (_first_line(e) if flag is None
                 else e.message + e.advice_for(_argument(flag, e.value)))
     message = e.message.splitlines()[0] if e.message else type(e).__name__
-    return message if flag is None else f"{flag}: {message}{e.advice_for(flag)}"
+    if flag is None:
+        return message if e.value is None else str(e).splitlines()[0]
+    where = flag if e.value is None else f"{flag} {e.value}"
+    return f"{where}: {message}{e.advice_for(flag)}"
 
 
 def error_text(e, flags):

@@ -1,17 +1,10 @@
 """`rockjax sweep`: peak responses over structures x scale factors x records (CSV, plot).
 
-Every combination runs through `rockjax.sweep` (the library's one batch engine), one per
-structure; the stages are: check the inputs, load structures and records, run, write the
-CSV (`SweepResult.csv_rows`), then plot (`_plotting.plot_sweeps`) and report.
-
-Records may differ in time step and length: they run together on their common time step
-(each resampled exactly), and each run ends at its own record's end plus `--tail`. The
-units of each record come from its file, or from `FILE:UNITS` / a `--units` after it.
-
-With `--distributed` or `--coordinator/--num-processes/--process-id` the sweep runs as
-several `jax.distributed` processes (`_distributed` starts them; `rockjax.sweep(...,
-processes=)` splits and gathers the runs): process 0 writes the same outputs as one process
-would.
+Reads the structures and records (each record's units from its file, `FILE:UNITS` or a
+`--units` after it), runs each structure through `rockjax.sweep` (the library's one batch
+engine; over several `jax.distributed` processes with `--distributed` or `--coordinator`,
+started by `_distributed`), writes the CSV (`rockjax._sweep.write_csv`), the plot
+(`_plotting.plot_sweeps`) and the report; process 0 writes them.
 """
 
 from __future__ import annotations
@@ -32,6 +25,7 @@ from rockjax._batch import DEFAULT_TAIL
 from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
+from rockjax._suite import expand_folders, RecordFile, unique_labels
 from rockjax._sweep import USABLE, write_csv
 
 from . import _distributed
@@ -64,8 +58,6 @@ from ._common import (
 #: the library parameters that the options of `rockjax sweep` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scales",
          "tail": "--tail", "structure": "--structure", "records": "--record"}
-#: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
-RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc")
 
 
 # ------------------------------------------------------------------------------ parser
@@ -149,14 +141,6 @@ def add_run_arguments(w):
 
 
 # ------------------------------------------------------------------------------ inputs
-def _unique_labels(paths):
-    """File stems as labels; the path as given where stems collide, then a #k suffix."""
-    stems = [pathlib.Path(p).stem for p in paths]
-    labels = [str(p) if stems.count(s) > 1 else s for p, s in zip(paths, stems)]
-    return [f"{lab}#{labels[:i].count(lab) + 1}" if labels.count(lab) > 1 else lab
-            for i, lab in enumerate(labels)]
-
-
 def _sweep_structures(paths):
     """(structures, labels) of the --structure files, or of Table 1 when there are none."""
     structures = []
@@ -165,17 +149,7 @@ def _sweep_structures(paths):
             structures.append(_load_structure(path))
         except (ValueError, OSError) as e:
             raise CLIError(f"--structure: {_first_line(e)}") from None
-    return structures, ["table1"] if paths is None else _unique_labels(paths)
-
-
-@dataclasses.dataclass
-class _Spec:
-    """One record to read: its path, the units given for it (None: the file's own, or
-    the default --units), and the --record folder it came from (None: named itself)."""
-
-    path: str
-    units: str | None = None
-    folder: str | None = None
+    return structures, ["table1"] if paths is None else unique_labels(paths)
 
 
 def _record_specs(inputs):
@@ -184,7 +158,7 @@ def _record_specs(inputs):
     specs, default = [], None
     for kind, value in inputs or []:
         if kind == "record":
-            specs.append(_Spec(*split_record_units(value)))
+            specs.append(RecordFile(*split_record_units(value)))
         elif not specs:
             if default is not None:
                 raise CLIError("--units: given twice before the first --record")
@@ -195,43 +169,6 @@ def _record_specs(inputs):
         else:
             specs[-1].units = value
     return specs, default
-
-
-def _folder_files(spec):
-    """(the record files of a --record folder, sorted, as specs; the names skipped)."""
-    files = sorted(p for p in pathlib.Path(spec.path).iterdir()
-                   if p.is_file() and not p.name.startswith("."))
-    taken = [p for p in files if p.suffix.lower() in RECORD_SUFFIXES]
-    skipped = [p.name for p in files if p.suffix.lower() not in RECORD_SUFFIXES]
-    if not taken:
-        raise CLIError(f"--record {spec.path}: no record files in this folder (looked for "
-                       f"{', '.join(RECORD_SUFFIXES)}; found {', '.join(skipped) or 'nothing'})")
-    return [_Spec(str(p), spec.units, spec.path) for p in taken], skipped
-
-
-def _expand_folders(specs):
-    """Folders replaced by their record files; a file also named itself takes the units
-    given there. Returns (specs, {folder: names skipped})."""
-    named = {}
-    for spec in specs:
-        if not pathlib.Path(spec.path).is_dir():
-            key = pathlib.Path(spec.path).resolve()
-            if key in named:
-                raise CLIError(f"--record {spec.path}: given twice")
-            named[key] = spec
-    out, skipped, seen = [], {}, set()
-    for spec in specs:
-        if pathlib.Path(spec.path).is_dir():
-            files, skipped[spec.path] = _folder_files(spec)
-        else:
-            files = [spec]
-        for f in files:
-            key = pathlib.Path(f.path).resolve()
-            if key not in seen:
-                seen.add(key)
-                own = named.get(key)
-                out.append(f if own is None else dataclasses.replace(own, folder=f.folder))
-    return out, skipped
 
 
 def _read_records(specs, default_units, record_dt):
@@ -313,13 +250,13 @@ def read_sweep(args):
     checked here (a one-line error when there is none), and the length of the runs."""
     structures, struct_labels = _sweep_structures(args.structure)
     specs, default_units = _record_specs(args.inputs)
-    specs, skipped = _expand_folders(specs)
+    specs, skipped = expand_folders(specs)
     records = _read_records(specs, default_units, args.record_dt)
     try:
         common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
     except ValueError as e:
         raise CLIError(f"--record: {_first_line(e)}") from None
-    sweep = Sweep(structures, struct_labels, records, _unique_labels([s.path for s in specs]),
+    sweep = Sweep(structures, struct_labels, records, unique_labels([s.path for s in specs]),
                   np.asarray(args.scales, float), args.tail, args.t1, skipped)
     n = max(sweep.t_ends) / sweep.grid_dt
     if not n <= _MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error

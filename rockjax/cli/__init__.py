@@ -31,21 +31,19 @@ def _version():
 
     import rockjax
 
-    stack = []
-    for pkg in ("jax", "diffrax", "equinox", "optax"):
+    def of(pkg):
         try:
-            stack.append(f"{pkg} {version(pkg)}")
+            return version(pkg)
         except PackageNotFoundError:  # pragma: no cover - a broken environment
-            stack.append(f"{pkg} ?")
-    return f"rockjax {rockjax.__version__} ({', '.join(stack)})"
+            return "?"
+
+    stack = ", ".join(f"{pkg} {of(pkg)}" for pkg in ("jax", "diffrax", "equinox", "optax"))
+    return f"rockjax {rockjax.__version__} ({stack})"
 
 
 def build_parser():
-    p = _Parser(
-        prog="rockjax",
-        description="Differentiable simulator of rigid structures rocking on a two-spring "
-        "foundation (SI units throughout).",
-    )
+    p = _Parser(prog="rockjax", description="Differentiable simulator of rigid structures "
+                "rocking on a two-spring foundation (SI units throughout).")
     p.add_argument("--version", action="version", version=_version())
     p.add_argument(
         "--no-compile-cache", dest="compile_cache", action="store_false",
@@ -92,5 +90,6 @@ def main(argv=None, *, compile_cache=None):
     except OSError as e:
         print(f"rockjax {args.command}: error: {e}", file=sys.stderr)
     return EXIT_USAGE
+
 
 __all__ = ["build_parser", "CLIError", "COMMANDS", "EXIT_USAGE", "main"]

@@ -75,14 +75,11 @@ def _build_excitation(args, s):
     if args.record is None:
         if args.u0 is None:
             raise CLIError("give --u0 M (free vibration) or --record FILE (ground motion)")
-        uo = float(s.u_overturn)
-        if abs(args.u0) > uo:
-            raise CLIError(
-                f"--u0 {args.u0:g} m is beyond u_overturn = {uo:.4g} m: the structure would "
-                "overturn at once (--u0 is in metres: 100 mm is --u0 0.1)"
-            )
-        excitation = rockjax.FreeVibration(args.u0, args.v0)
-        return excitation, None, {"type": "free_vibration", "u0": args.u0, "v0": args.v0}
+        if abs(args.u0) > (uo := float(s.u_overturn)):
+            raise CLIError(f"--u0 {args.u0:g} m is beyond u_overturn = {uo:.4g} m: the structure "
+                           "would overturn at once (--u0 is in metres: 100 mm is --u0 0.1)")
+        return (rockjax.FreeVibration(args.u0, args.v0), None,
+                {"type": "free_vibration", "u0": args.u0, "v0": args.v0})
     rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt)
     gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
     return gm, gm, {"type": "ground_motion", **record_info(rec, args.scale)}
@@ -116,29 +113,14 @@ UNITS = {
 }
 
 
-def _peak_theta(s, res, model, t_overturn):
-    """The peak rotation [rad]: from the exact peak |u| where the model maps u to theta
-    (the SDOF models), else the largest |theta| on the output grid up to overturning."""
-    if model.kinematics_of_u:
-        return abs(float(model.theta_uplift_of_u(s, res.peak_u)[0]))
-    ts, theta = np.asarray(res.ts), np.abs(np.asarray(res.theta))
-    keep = ts <= t_overturn if t_overturn is not None else np.ones(ts.shape, bool)
-    return float(np.max(theta[keep]))
-
-
 def _result(args, s, res, t1, read):
     """The JSON result: what produced it, what was read, and the response (SI units)."""
-    summary = res.summary()
-    theta = _peak_theta(s, res, rockjax.get_model(args.model, args.impact), summary["t_overturn"])
-    r = float(s.restitution) if args.r is None else args.r
-    out = {**model_info(args), "r": r, "r_from": "Eq 3" if args.r is None else "--r",
-           "excitation": read, "t1": t1}
-    out.update(summary)
-    out["peak_theta"] = theta
-    out["peak_theta_over_alpha_c"] = theta / float(s.alpha_c)
-    out["message"] = res.message
-    out["units"] = UNITS
-    return out
+    theta = res.peak_theta(s, rockjax.get_model(args.model, args.impact))
+    return {**model_info(args), "r": float(s.restitution) if args.r is None else args.r,
+            "r_from": "Eq 3" if args.r is None else "--r", "excitation": read, "t1": t1,
+            **res.summary(), "peak_theta": theta,
+            "peak_theta_over_alpha_c": theta / float(s.alpha_c), "message": res.message,
+            "units": UNITS}
 
 
 def _print_summary(args, out):

@@ -283,3 +283,41 @@ def test_no_message_rewriting_in_the_cli():
         src = path.read_text()
         assert not re.search(r"^import re$|\bre\.(sub|compile)\(", src, re.M), path.name
         assert "cli_message(" not in src and "str(e).replace" not in src, path.name
+
+
+def test_an_error_about_one_value_names_the_option_and_the_value(capsys, monkeypatch):
+    """`ParameterError(value=...)`: "--flag VALUE: message" on the command line, and
+    "param='VALUE': message" in Python; it survives pickling."""
+    import pickle
+
+    from rockjax.cli import sweep
+
+    error = rockjax.ParameterError("no record files here", param="records", value="quakes/")
+    assert str(error) == "records='quakes/': no record files here"
+    assert pickle.loads(pickle.dumps(error)).value == "quakes/"
+
+    def run(args):
+        raise error
+
+    monkeypatch.setattr(sweep, "run", run)
+    assert main(["sweep", "--record", "r.txt"]) == 2
+    assert (capsys.readouterr().err.strip()
+            == "rockjax sweep: error: --record quakes/: no record files here")
+
+
+def test_trace_errors_name_the_argument_that_fixes_them(tmp_path):
+    """A `TraceError` carries the argument (and a value) that fixes it; the command line
+    writes that argument as its own option, the message otherwise unchanged."""
+    import identification
+    from rockjax.cli import fit
+    from rockjax.cli._common import parameter_message
+
+    path = tmp_path / "t.csv"
+    path.write_text("time,disp,temp\n0,0.1,3\n")
+    with pytest.raises(identification.TraceError) as e:
+        identification.read_trace(path)
+    assert e.value.param == "columns"
+    assert str(e.value).endswith("name the columns with columns={'t': ..., 'u': ...}")
+    cli = parameter_message(e.value, fit.FLAGS)
+    assert cli == e.value.message + "; name the columns with --columns t=NAME,u=NAME"
+    assert parameter_message(e.value, {}) == str(e.value)  # no option: the Python advice

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 from rockjax._plotting import plot_pushover, pushover_curves
 
@@ -13,6 +14,7 @@ from ._common import (
     _write_csv,
     add_outputs,
     check_outputs,
+    CLIError,
     converter,
     positive_float,
 )
@@ -44,6 +46,16 @@ def add_parser(subparsers):
     return q
 
 
+def _umax(s, umax):
+    """--umax, or 0.99 u_overturn; below the body's reach, where the pushover ends."""
+    umax = umax if umax is not None else 0.99 * float(s.u_overturn)
+    reach = float(s.R_e * (1.0 + math.sin(float(s.alpha_e))))
+    if umax >= reach:
+        raise CLIError(f"--umax must be below the body's reach R_e (1 + sin alpha_e) = "
+                       f"{reach:.6g} m, got {umax}")
+    return umax
+
+
 def _print_table(derived, curves):
     n = len(curves["u"])
     print(_derived_table(derived), "", f"{'u [m]':>10} {'simplified [N]':>15} {'exact [N]':>12} "
@@ -56,9 +68,9 @@ def _print_table(derived, curves):
 
 def run(args):
     s = _load_structure(args.structure)
+    umax = _umax(s, args.umax)
     check_outputs(args, r=False)
-    # --umax beyond the body's reach: the library's ParameterError about u, read as --umax
-    curves = pushover_curves(s, umax=args.umax, n=args.points)
+    curves = pushover_curves(s, umax=umax, n=args.points)
     if args.plot:
         plot_pushover(s, curves).savefig(args.plot, dpi=150)
     if args.out:

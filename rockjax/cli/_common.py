@@ -58,10 +58,11 @@ def _first_line(e):
 
 
 # ------------------------------------------------------------------ argument converters
-def converter(option, kind=float, test=None, must=None):
+def converter(option, kind=float, test=None, must=None, noun=None):
     """The one factory of argparse types: the text as `kind` (float or int), which must pass
-    `test` (else "OPTION must MUST, got X": the integer read, or the text of a number)."""
-    noun = "an integer" if kind is int else "a number"
+    `test` (else "OPTION must MUST, got X": the integer read, or the text of a number);
+    text that is no number: "OPTION must be NOUN" (default "an integer" or "a number")."""
+    noun = noun or ("an integer" if kind is int else "a number")
 
     def conv(text):
         try:

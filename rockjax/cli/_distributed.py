@@ -54,7 +54,8 @@ def add_distributed_arguments(parser):
     g.add_argument("--coordinator-timeout", default=None, metavar="S",
                    type=converter("--coordinator-timeout", float,
                                   lambda x: math.isfinite(x) and x > 0,
-                                  "be a positive number of seconds"),
+                                  "be a positive number of seconds",
+                                  noun="a positive number of seconds"),
                    help=f"seconds to wait for the coordinator and every process to connect "
                    f"(default {DEFAULT_TIMEOUT:g})")
 

@@ -240,9 +240,15 @@ class Sweep:
         counts = [r.status_counts() for r in self.results]
         return {name: sum(c[name] for c in counts) for name in rockjax.STATUS}
 
-    def per_structure(self, what):
-        """Per structure label, `SweepResult.to_dict()[what]` (e.g. fraction_overturned)."""
-        return {lab: r.to_dict()[what] for lab, r in zip(self.struct_labels, self.results)}
+    def fractions(self):
+        """Per structure label, `SweepResult.fraction_overturned` (None for NaN)."""
+        return {lab: [None if np.isnan(x) else float(x) for x in r.fraction_overturned()]
+                for lab, r in zip(self.struct_labels, self.results)}
+
+    def failed_by_scale(self):
+        """Per structure label, `SweepResult.failed_by_scale`."""
+        return {lab: r.failed_by_scale().tolist()
+                for lab, r in zip(self.struct_labels, self.results)}
 
 
 def read_sweep(args):
@@ -322,8 +328,8 @@ def sweep_json(args, sweep):
         "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
         "record_info": sweep.record_infos(), "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
-        "fraction_overturned": sweep.per_structure("fraction_overturned"),
-        "failed_by_scale": sweep.per_structure("failed_by_scale"), "warnings": sweep.warnings,
+        "fraction_overturned": sweep.fractions(),
+        "failed_by_scale": sweep.failed_by_scale(), "warnings": sweep.warnings,
     }
 
 
@@ -365,7 +371,7 @@ def _print_report(args, sweep):
               f"({share}); {n_runs - n_used} failed runs left out ({left})")
     else:
         print(f"overturned    {n_over} of {n_runs} ({share})")
-    labels, fractions = sweep.struct_labels, sweep.per_structure("fraction_overturned")
+    labels, fractions = sweep.struct_labels, sweep.fractions()
     width = max(8, *(len(lab) + 2 for lab in labels))
     head = f"{'scale':>10}" + "".join(f"{lab:>{width}}" for lab in labels)
     print(f"fraction overturned by scale (of the runs that completed or overturned):\n{head}")
@@ -374,7 +380,7 @@ def _print_report(args, sweep):
             f"{'-' if (x := fractions[lab][i]) is None else f'{x:.3f}':>{width}}"
             for lab in labels))
     if failed:
-        by_scale = sweep.per_structure("failed_by_scale")
+        by_scale = sweep.failed_by_scale()
         print("failed runs by scale (max_impacts, solver_failure; left out of the fractions):"
               f"\n{head}")
         for i, scale in enumerate(sweep.scales):

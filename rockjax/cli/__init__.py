@@ -12,7 +12,7 @@ import sys
 from rockjax._cache import enable_compile_cache
 
 from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
-from ._common import _Parser, CLIError, COMMON_FLAGS, error_text, EXIT_USAGE
+from ._common import CLIError, COMMON_FLAGS, error_text, EXIT_USAGE, Parser
 
 #: the sub-commands, in the order `rockjax --help` lists them
 COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
@@ -42,8 +42,8 @@ def _version():
 
 
 def build_parser():
-    p = _Parser(prog="rockjax", description="Differentiable simulator of rigid structures "
-                "rocking on a two-spring foundation (SI units throughout).")
+    p = Parser(prog="rockjax", description="Differentiable simulator of rigid structures "
+               "rocking on a two-spring foundation (SI units throughout).")
     p.add_argument("--version", action="version", version=_version())
     p.add_argument(
         "--no-compile-cache", dest="compile_cache", action="store_false",
@@ -51,7 +51,7 @@ def build_parser():
         "$ROCKJAX_COMPILE_CACHE or ~/.cache/rockjax/jax; ROCKJAX_COMPILE_CACHE=off also "
         "turns it off): a second run of a command skips most of its compile time",
     )
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for command in COMMANDS:
         command.add_parser(sub)
     return p

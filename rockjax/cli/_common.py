@@ -17,7 +17,7 @@ from rockjax._fidelity import sdof_lift_off_message
 
 EXIT_USAGE = 2
 #: the longest run the CLI accepts, in output samples or record steps
-_MAX_STEPS = 10_000_000
+MAX_STEPS = 10_000_000
 #: the most scale factors a START:STOP:N range may give
 _MAX_SCALES = 1_000_000
 #: where the --model help sends the user
@@ -33,10 +33,11 @@ COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t
 RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale"}
 #: the units of acceleration a record may be in (`rockjax.UNITS`), for --units' help
 RECORD_UNITS_METAVAR = "{" + ",".join(rockjax.UNITS["acceleration"]) + "}"
-#: the units of the derived quantities of a structure (`_derived_table`, pushover --json)
-_UNITS = {"W": "N", "H_c": "m", "R_c": "m", "alpha_c": "rad", "R_e": "m", "alpha_e": "rad",
-          "R_b": "m", "alpha_b": "rad", "delta_0": "m", "theta_crit": "rad", "u_crit": "m",
-          "K1": "N/m", "P_crit": "N", "P_crit2": "N", "u_overturn": "m", "restitution": "-"}
+#: the units of the derived quantities of a structure (`derived_table`, pushover --json)
+DERIVED_UNITS = {"W": "N", "H_c": "m", "R_c": "m", "alpha_c": "rad", "R_e": "m",
+                 "alpha_e": "rad", "R_b": "m", "alpha_b": "rad", "delta_0": "m",
+                 "theta_crit": "rad", "u_crit": "m", "K1": "N/m", "P_crit": "N",
+                 "P_crit2": "N", "u_overturn": "m", "restitution": "-"}
 #: the fidelity warning's advice in CLI syntax
 _FIDELITY_ADVICE = ("use --model rigid_body (the body's own one-DOF equation, about as fast) "
                     "or two_spring_2dof. See docs/models.md; silence with "
@@ -47,12 +48,12 @@ class CLIError(Exception):
     """A user-facing error: printed as one line, exit code 2."""
 
 
-class _Parser(argparse.ArgumentParser):
+class Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, no usage dump
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
 
 
-def _first_line(e):
+def first_line(e):
     """The first line of an exception's message, or its type's name when it has none."""
     return str(e).splitlines()[0] if str(e) else type(e).__name__
 
@@ -134,7 +135,7 @@ def number_list(subject):
 
 
 #: --scales: a comma list "0.5,1,1.5" or a range "START:STOP:N"
-_scales = number_list("scale factors")
+scale_list = number_list("scale factors")
 
 
 def record_units(text):
@@ -188,7 +189,7 @@ def add_outputs(parser, plot, out=None, json="print one JSON object and nothing 
 
 
 # ------------------------------------------------------------------------ input checks
-def _load_structure(path):
+def load_structure(path):
     """The structure of a TOML file, or the Table 1 McManus column when `path` is None."""
     return rockjax.mcmanus_column() if path is None else rockjax.RockingStructure.from_toml(path)
 
@@ -211,7 +212,7 @@ def check_outputs(args, r=True):
             raise CLIError(f"{option}: directory not found: {p.parent}")
 
 
-def _write_csv(path, columns, units):
+def write_columns(path, columns, units):
     """Columns as CSV; `units` maps each column name to its unit, written into the header
     as a suffix (``u_m``, ``theta_rad``)."""
     data = np.column_stack([np.asarray(columns[k]) for k in units])
@@ -272,10 +273,10 @@ def record_line(info):
     )
 
 
-def _derived_table(derived):
+def derived_table(derived):
     """The derived quantities of a structure as a text table (angles also in degrees)."""
     lines = [f"{'quantity':<14}{'value':>14}  unit"]
-    for k, unit in _UNITS.items():
+    for k, unit in DERIVED_UNITS.items():
         extra = f"  ({derived[k + '_deg']:.4f} deg)" if k + "_deg" in derived else ""
         lines.append(f"{k:<14}{derived[k]:>14.6g}  {unit}{extra}")
     return "\n".join(lines)
@@ -300,7 +301,7 @@ def parameter_message(e, flags):
     syntax."""
     flag = flags.get(e.param)
     if not isinstance(e, rockjax.ParameterError):
-        return (_first_line(e) if flag is None
+        return (first_line(e) if flag is None
                 else e.message + e.advice_for(_argument(flag, e.value)))
     message = e.message.splitlines()[0] if e.message else type(e).__name__
     if flag is None:
@@ -314,4 +315,4 @@ def error_text(e, flags):
     parameter, else its first line."""
     if isinstance(e, rockjax.ParameterError) or hasattr(e, "advice_for"):
         return parameter_message(e, flags)
-    return _first_line(e)
+    return first_line(e)

@@ -15,7 +15,7 @@ import rockjax
 from rockjax import datasets
 from rockjax._plotting import plot_fit, plot_pushover, plot_response, pushover_curves
 
-from ._common import _derived_table, record_info, record_line, save
+from ._common import derived_table, record_info, record_line, save
 from .fit import fit_stats_lines, fit_trace, fit_value_table
 
 #: the synthetic decay trace shipped with rockjax that the identification stage fits
@@ -40,7 +40,7 @@ def _demo_pushover(s, out):
     mask = (u >= 1.2 * d["u_crit"]) & (u <= 0.95 * d["u_overturn"])
     err = {k: 100 * np.max(np.abs(curves[k] - curves["numerical"])[mask]) / d["P_crit"]
            for k in ("exact", "simplified")}
-    print("rockjax demo: McManus (1980) column of the paper's Table 1\n", _derived_table(d),
+    print("rockjax demo: McManus (1980) column of the paper's Table 1\n", derived_table(d),
           "\nclosed forms against the numerical pushover, over [1.2 u_crit, 0.95 u_overturn]:",
           f"  exact (Eq 18)      max |error| = {err['exact']:.2e} % of P_crit",
           f"  simplified (Eq 20) max |error| = {err['simplified']:.3f} % of P_crit", sep="\n")

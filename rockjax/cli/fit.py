@@ -16,13 +16,13 @@ import warnings
 from rockjax._plotting import plot_fit, plot_joint_fit
 
 from ._common import (
-    _load_structure,
     add_model_arguments,
     add_outputs,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
     converter,
+    load_structure,
     model_info,
     model_line,
     positive_float,
@@ -329,7 +329,7 @@ def run(args):
 
     check_outputs(args, r=False)
     fm = _check_model_options(args, identification)
-    s = _load_structure(args.structure)
+    s = load_structure(args.structure)
     joint = len(args.trace) > 1
     traces, read_warnings = [], []
     for path in args.trace:

@@ -8,15 +8,15 @@ import math
 from rockjax._plotting import plot_pushover, pushover_curves
 
 from ._common import (
-    _derived_table,
-    _load_structure,
-    _UNITS,
-    _write_csv,
     add_outputs,
     check_outputs,
     CLIError,
     converter,
+    derived_table,
+    DERIVED_UNITS,
+    load_structure,
     positive_float,
+    write_columns,
 )
 
 _CURVES = ("u", "simplified", "exact", "numerical")
@@ -58,7 +58,7 @@ def _umax(s, umax):
 
 def _print_table(derived, curves):
     n = len(curves["u"])
-    print(_derived_table(derived), "", f"{'u [m]':>10} {'simplified [N]':>15} {'exact [N]':>12} "
+    print(derived_table(derived), "", f"{'u [m]':>10} {'simplified [N]':>15} {'exact [N]':>12} "
           f"{'numerical [N]':>14}", sep="\n")
     for i in sorted({int(round(k * (n - 1) / 20)) for k in range(21)}):
         print(f"{curves['u'][i]:10.5f} {curves['simplified'][i]:15.3f} "
@@ -67,20 +67,20 @@ def _print_table(derived, curves):
 
 
 def run(args):
-    s = _load_structure(args.structure)
+    s = load_structure(args.structure)
     umax = _umax(s, args.umax)
     check_outputs(args, r=False)
     curves = pushover_curves(s, umax=umax, n=args.points)
     if args.plot:
         plot_pushover(s, curves).savefig(args.plot, dpi=150)
     if args.out:
-        _write_csv(args.out, curves, CSV_COLUMNS)
+        write_columns(args.out, curves, CSV_COLUMNS)
     if args.json:
         print(json.dumps({
             "derived": s.derived(), "curve": {k: curves[k].tolist() for k in _CURVES},
             "converged": curves["converged"],
             "units": {"u": "m", "simplified": "N", "exact": "N", "numerical": "N",
-                      "angles": "rad (and deg in *_deg)", "derived": _UNITS}}))
+                      "angles": "rad (and deg in *_deg)", "derived": DERIVED_UNITS}}))
         return 0
     _print_table(s.derived(), curves)
     if args.plot:

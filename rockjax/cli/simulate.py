@@ -12,9 +12,6 @@ import rockjax
 from rockjax._plotting import plot_response
 
 from ._common import (
-    _load_structure,
-    _MAX_STEPS,
-    _write_csv,
     add_model_arguments,
     add_outputs,
     check_outputs,
@@ -22,6 +19,8 @@ from ._common import (
     COMMON_FLAGS,
     fidelity_note,
     finite_float,
+    load_structure,
+    MAX_STEPS,
     model_info,
     model_line,
     positive_float,
@@ -30,6 +29,7 @@ from ._common import (
     record_line,
     record_units,
     RECORD_UNITS_METAVAR,
+    write_columns,
 )
 
 #: the library parameters that the options of `rockjax simulate` set (errors name the option)
@@ -90,9 +90,9 @@ def _end_time(args, gm):
     numpy's size error, for absurd run lengths."""
     t1 = args.t1 if args.t1 is not None else 4.0 if gm is None else float(gm.duration)
     dt = _FREE_DT if gm is None else float(gm.dt)
-    if not t1 / dt <= _MAX_STEPS:
+    if not t1 / dt <= MAX_STEPS:
         raise CLIError(f"--t1 {t1:g} s is {t1 / dt:.3g} output samples of {dt:g} s, more than "
-                       f"{_MAX_STEPS:,}; shorten --t1")
+                       f"{MAX_STEPS:,}; shorten --t1")
     return t1
 
 
@@ -142,7 +142,7 @@ def _print_summary(args, out):
 
 
 def run(args):
-    s = _load_structure(args.structure)
+    s = load_structure(args.structure)
     check_outputs(args)
     excitation, gm, read = _build_excitation(args, s)
     t1 = _end_time(args, gm)
@@ -154,8 +154,8 @@ def run(args):
     if out["fidelity_warning"]:
         print(f"warning: {out['fidelity_warning']}", file=sys.stderr)
     if args.out:
-        _write_csv(args.out, {k: np.asarray(getattr(res, "ts" if k == "t" else k))
-                              for k in CSV_COLUMNS}, CSV_COLUMNS)
+        write_columns(args.out, {k: np.asarray(getattr(res, "ts" if k == "t" else k))
+                                 for k in CSV_COLUMNS}, CSV_COLUMNS)
     if args.plot:
         _write_plot(args, s, res, gm, read)
     if args.json:

@@ -12,12 +12,12 @@ from rockjax._plotting import new_figure
 from rockjax._spectrum import frequency_parameter
 
 from ._common import (
-    _load_structure,
     add_model_arguments,
     add_outputs,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
+    load_structure,
     model_info,
     model_line,
     number_list,
@@ -85,7 +85,7 @@ def _print_report(args, sp, info):
 
 
 def run(args):
-    s = _load_structure(args.structure)
+    s = load_structure(args.structure)
     check_outputs(args)
     if not 1e-8 <= args.rtol <= 0.1:
         raise CLIError(f"--rtol must lie in [1e-8, 0.1], got {args.rtol}")

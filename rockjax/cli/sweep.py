@@ -30,10 +30,6 @@ from rockjax._sweep import USABLE, write_csv
 
 from . import _distributed
 from ._common import (
-    _first_line,
-    _load_structure,
-    _MAX_STEPS,
-    _scales,
     add_model_arguments,
     add_outputs,
     check_outputs,
@@ -43,6 +39,9 @@ from ._common import (
     error_text,
     EXIT_USAGE,
     fidelity_note,
+    first_line,
+    load_structure,
+    MAX_STEPS,
     model_info,
     model_line,
     positive_float,
@@ -52,6 +51,7 @@ from ._common import (
     record_units,
     RECORD_UNITS_METAVAR,
     save,
+    scale_list,
     split_record_units,
 )
 
@@ -112,7 +112,7 @@ def add_input_arguments(w, structure="structure file, repeatable (default: Table
         "are refused")
     w.add_argument("--record-dt", type=positive_float("--record-dt"), metavar="DT",
                    help="sample step [s] of the one-column records (the others state their own)")
-    w.add_argument("--scales", type=_scales, default=None if scales else [1.0],
+    w.add_argument("--scales", type=scale_list, default=None if scales else [1.0],
                    required=bool(scales), metavar="LIST|START:STOP:N",
                    help=scales or 'scale factors: a comma list such as "0.5,1,1.5" or a range '
                    '"START:STOP:N" of N evenly spaced values, ends included (default 1)')
@@ -146,9 +146,9 @@ def _sweep_structures(paths):
     structures = []
     for path in paths or [None]:
         try:
-            structures.append(_load_structure(path))
+            structures.append(load_structure(path))
         except (ValueError, OSError) as e:
-            raise CLIError(f"--structure: {_first_line(e)}") from None
+            raise CLIError(f"--structure: {first_line(e)}") from None
     return structures, ["table1"] if paths is None else unique_labels(paths)
 
 
@@ -261,14 +261,14 @@ def read_sweep(args):
     try:
         common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
     except ValueError as e:
-        raise CLIError(f"--record: {_first_line(e)}") from None
+        raise CLIError(f"--record: {first_line(e)}") from None
     sweep = Sweep(structures, struct_labels, records, unique_labels([s.path for s in specs]),
                   np.asarray(args.scales, float), args.tail, args.t1, skipped)
     n = max(sweep.t_ends) / sweep.grid_dt
-    if not n <= _MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error
+    if not n <= MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error
         raise CLIError(
             f"--tail {sweep.tail:g} s makes runs of {n:.3g} steps of the records' common grid "
-            f"({sweep.grid_dt:g} s), more than {_MAX_STEPS:,}; shorten --tail or cap the runs "
+            f"({sweep.grid_dt:g} s), more than {MAX_STEPS:,}; shorten --tail or cap the runs "
             "with --t1")
     return sweep
 

@@ -321,3 +321,26 @@ def test_trace_errors_name_the_argument_that_fixes_them(tmp_path):
     cli = parameter_message(e.value, fit.FLAGS)
     assert cli == e.value.message + "; name the columns with --columns t=NAME,u=NAME"
     assert parameter_message(e.value, {}) == str(e.value)  # no option: the Python advice
+
+
+def test_fit_figures_live_in_plotting(tmp_path):
+    """`rockjax._plotting.plot_fit` (with the uplift panel when the trace has one) and
+    `plot_joint_fit`: the figures of `rockjax fit --plot`, drawn from any fit result."""
+    from types import SimpleNamespace
+
+    from rockjax._plotting import plot_fit, plot_joint_fit
+
+    t = np.linspace(0.0, 1.0, 50)
+    u, up = 0.05 * np.cos(6 * t), 0.01 * np.abs(np.sin(6 * t))
+    fit = SimpleNamespace(names=("k_f", "r"), values={"k_f": 5e5, "r": 0.7},
+                          stderr={"k_f": 1e3, "r": 0.01}, converged=True, rms=1e-4,
+                          response=SimpleNamespace(u=u + 1e-4, uplift=up))
+    with_uplift = plot_fit(SimpleNamespace(t=t, u=u, uplift=up), fit, title="T")
+    assert len(with_uplift.axes) == 3 and "k_f = 5e+05" in with_uplift.axes[0].get_title()
+    assert len(plot_fit(SimpleNamespace(t=t, u=u, uplift=None), fit).axes) == 2
+    joint = SimpleNamespace(**vars(fit), responses=[fit.response] * 2,
+                            per_trace=[{"source": "a.csv", "rms": 1e-4}] * 2)
+    fig = plot_joint_fit([SimpleNamespace(t=t, u=u)] * 2, joint)
+    assert len(fig.axes) == 2
+    fig.savefig(tmp_path / "j.png")
+    assert (tmp_path / "j.png").stat().st_size > 1000

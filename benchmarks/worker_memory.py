@@ -23,7 +23,8 @@ def main(argv=None):
     rows = collections.defaultdict(list)
     with open(args.log) as f:
         for line in f:
-            worker, nodeid, rss = line.split()
+            worker, rest = line.rstrip("\n").split(" ", 1)  # test ids may hold blanks
+            nodeid, rss = rest.rsplit(" ", 1)
             rows[worker].append((nodeid, int(rss)))
     jumps = []
     for worker, seq in sorted(rows.items()):

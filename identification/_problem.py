@@ -194,13 +194,12 @@ def _check_amplitude(trace: DecayTrace, amplitude: float, u_overturn: float):
     if frm == "header":
         msg += (f": the header gives u in {unit} (column {trace.columns.get('u', 'u')!r}); "
                 "check that unit and the structure")
-        raise TraceError(msg, msg + " (--structure)")
+        raise TraceError(msg, param="structure", advice=" ({})", python="")
     msg += f" (u read in {unit}, {frm or 'SI'}): is the trace in mm? "
-    raise TraceError(
-        msg + "give units in the header, such as t,u_mm, or read it with "
-        "read_trace(path, units={'u': 'mm'})",
-        msg + "give units in the header, such as t,u_mm, or pass --units u=mm",
-    )
+    raise TraceError(msg, param="units", value={"u": "mm"},
+                     advice="give units in the header, such as t,u_mm, or pass {}",
+                     python="give units in the header, such as t,u_mm, or read it with "
+                     "read_trace(path, units={'u': 'mm'})")
 
 
 def _starting_values(structure, release: Release, initial, fm: FitModel, params: tuple):

@@ -114,13 +114,20 @@ _UNITS_FROM = ("header", "units argument", "assumed SI", "SI arrays")
 
 
 class TraceError(ValueError):
-    """A trace that cannot be used as given. ``str(e)`` gives the advice in Python terms
-    (e.g. ``drop_nan=True``); ``e.cli_message`` gives it in ``rockjax fit``'s terms
-    (``--drop-nan``)."""
+    """A trace that cannot be used as given. `param` names the argument that would fix it
+    (``"drop_nan"``, ``"columns"``, ``"units"``, ``"structure"``; None: none) and `value`
+    a value of it that would. ``str(e)`` is `message` with the advice in Python terms
+    (``pass drop_nan=True``); a front end writes the argument in its own terms into
+    `advice` (``{}`` marks where) with `advice_for`, as ``rockjax fit`` does (``--drop-nan``)."""
 
-    def __init__(self, message: str, cli_message: str | None = None):
-        super().__init__(message)
-        self.cli_message = message if cli_message is None else cli_message
+    def __init__(self, message: str, *, param=None, value=None, advice="", python=None):
+        self.message, self.param, self.value, self.advice = message, param, value, advice
+        super().__init__(message + (advice.format(f"{param}={value!r}") if python is None
+                                    else python))
+
+    def advice_for(self, argument: str) -> str:
+        """The advice with `argument`, the parameter and its value in a front end's terms."""
+        return self.advice.format(argument)
 
 
 class DroppedRowsWarning(UserWarning):
@@ -462,11 +469,9 @@ def _some(items, n: int = 5) -> str:
     return ", ".join(str(x) for x in items[:n]) + (", ..." if len(items) > n else "")
 
 
-def _line_error(name: str, lineno: int, msg: str, cli: str | None = None) -> TraceError:
-    """The error for line `lineno` (1-based) of the file `name` (`cli`: the same message
-    with the command line's advice)."""
-    return TraceError(f"{name}, line {lineno}: {msg}",
-                      None if cli is None else f"{name}, line {lineno}: {cli}")
+def _line_error(name: str, lineno: int, msg: str, **advice) -> TraceError:
+    """The error for line `lineno` (1-based) of the file `name` (`advice`: `TraceError`'s)."""
+    return TraceError(f"{name}, line {lineno}: {msg}", **advice)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -525,8 +530,9 @@ def _read_header(name: str, lines: list[str], columns, units) -> tuple[int, _Lay
 
 def _auto_columns(where, raw: str, cells: tuple) -> dict:
     """channel -> column index, from the names of the header (every column must be one)."""
-    hint = ("; name the columns with columns={'t': ..., 'u': ...}",
-            "; name the columns with --columns t=NAME,u=NAME")
+    hint = dict(param="columns", value={"t": "NAME", "u": "NAME"},
+                advice="; name the columns with {}",
+                python="; name the columns with columns={'t': ..., 'u': ...}")
     index: dict = {}
     for i, cell in enumerate(cells):
         base, _ = _split_unit(cell)
@@ -536,15 +542,15 @@ def _auto_columns(where, raw: str, cells: tuple) -> dict:
         if ch is None:
             msg = (f"expected header {_EXPECTED_HEADER}, got {raw!r}: column {cell!r} is "
                    "not a time, displacement or uplift column")
-            raise _line_error(*where, msg + hint[0], msg + hint[1])
+            raise _line_error(*where, msg, **hint)
         if ch in index:
             msg = f"two {_KIND[ch]} columns in the header ({cells[index[ch]]!r} and {cell!r})"
-            raise _line_error(*where, msg + hint[0], msg + hint[1])
+            raise _line_error(*where, msg, **hint)
         index[ch] = i
     for ch in ("t", "u"):
         if ch not in index:
             msg = f"expected header {_EXPECTED_HEADER}, got {raw!r}: no {_KIND[ch]} column"
-            raise _line_error(*where, msg + hint[0], msg + hint[1])
+            raise _line_error(*where, msg, **hint)
     return index
 
 
@@ -638,8 +644,8 @@ def _read_rows(name: str, lines: list[str], header_line: int, layout: _Layout,
         lineno, col, x = missing[0]
         msg = (f"column {col!r}: missing value {x!r} (NaN); {len(missing)} row(s) of the "
                f"file have missing values (line(s) {_some(m[0] for m in missing)}); ")
-        raise _line_error(name, lineno, msg + "pass drop_nan=True to drop them",
-                          msg + "pass --drop-nan to drop them")
+        raise _line_error(name, lineno, msg, param="drop_nan", value=True,
+                          advice="pass {} to drop them")
     return rows, linenos, tuple(m[0] for m in missing)
 
 

@@ -10,8 +10,12 @@ processes and hands it over.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import dataclasses
 import json
+import os
+import sys
 import zlib
 
 import numpy as np
@@ -102,3 +106,28 @@ def fingerprint(meta, arrays):
             data = repr(leaf).encode()
         h = zlib.crc32(data, h)
     return h
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send file descriptor 1 to 2 while connected: gloo prints its connection messages
+    ('[Gloo] Rank 0 is connected to 1 peer ranks') to C's stdout, at times of its own,
+    where they would mix with a program's output (the command line's report or its
+    --json object)."""
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+        os.dup2(2, 1)
+    except OSError:  # no file descriptors 1 or 2 to move
+        yield
+        return
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
+        try:
+            ctypes.CDLL(None).fflush(None)
+        except (OSError, AttributeError):  # pragma: no cover - no C library to flush
+            pass
+        os.dup2(saved, 1)
+        os.close(saved)

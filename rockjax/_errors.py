@@ -22,18 +22,23 @@ class ParameterError(ValueError):
     """A bad argument. `param` is the name of the API parameter at fault (``"t1"``,
     ``"scales"``, ``"units"``, ...); `message` says what is wrong without naming how to set
     it; `choices` are values that would do and `omit` whether leaving the parameter out
-    would do. ``str(e)`` gives the message with that advice in Python syntax (``pass
-    units='g' or units='m/s2'``); `advice_for` gives it for another spelling of the
-    parameter, such as a command-line option (``pass --units g or --units m/s2``).
+    would do; `value` (text, optional) the value at fault when the message is about one of
+    several (``records='quakes/'``: "no record files in this folder"). ``str(e)`` gives the
+    message with that advice in Python syntax (``pass units='g' or units='m/s2'``);
+    `advice_for` gives it for another spelling of the parameter, such as a command-line
+    option (``pass --units g or --units m/s2``).
 
     A subclass of `ValueError`: ``except ValueError`` catches it."""
 
-    def __init__(self, message: str, *, param: str, choices=(), omit: bool = False):
+    def __init__(self, message: str, *, param: str, choices=(), omit: bool = False,
+                 value: str | None = None):
         self.message = str(message)
         self.param = param
         self.choices = tuple(choices)
         self.omit = bool(omit)
-        super().__init__(self.message + self.advice_for(None))
+        self.value = value
+        head = "" if value is None else f"{param}={value!r}: "
+        super().__init__(head + self.message + self.advice_for(None))
 
     def advice_for(self, option: str | None) -> str:
         """The advice (``"; omit ... or pass ..."``, or ``""``) for the parameter spelled
@@ -53,11 +58,11 @@ class ParameterError(ValueError):
         return f"; {' or '.join(parts)}" if parts else ""
 
     def __reduce__(self):  # picklable (multiprocessing, pytest-xdist)
-        return (_rebuild, (self.message, self.param, self.choices, self.omit))
+        return (_rebuild, (self.message, self.param, self.choices, self.omit, self.value))
 
 
-def _rebuild(message, param, choices, omit):
-    return ParameterError(message, param=param, choices=choices, omit=omit)
+def _rebuild(message, param, choices, omit, value=None):
+    return ParameterError(message, param=param, choices=choices, omit=omit, value=value)
 
 
 class ConfigurationWarning(UserWarning):

@@ -259,3 +259,63 @@ def plot_sweeps(results, labels, *, title=None):
     for ax in (ax_u, ax_f):
         ax.grid(alpha=0.3)
     return fig
+
+
+# ------------------------------------------------------------------------------- fits
+def _fit_values(fit):
+    return ", ".join(f"{p} = {fit.values[p]:.4g} ± {fit.stderr[p]:.2g}" for p in fit.names)
+
+
+def plot_fit(trace, fit, *, title=None, measured_label="measured"):
+    """Measured and fitted displacement (and uplift, when measured) of a decay trace and
+    its fit (`identification.fit_decay`), with a residual panel. Returns a matplotlib
+    Figure (no pyplot)."""
+    t, u = np.asarray(trace.t), np.asarray(trace.u)
+    channels = [("u", "displacement u [mm]", u, np.asarray(fit.response.u), "C0")]
+    if trace.uplift is not None:
+        channels.append(("uplift", "uplift [mm]", np.asarray(trace.uplift),
+                         np.asarray(fit.response.uplift), "C2"))
+    panels = len(channels) + 1
+    fig = new_figure(figsize=(9, 2.3 * panels + 0.8))
+    axes = fig.subplots(panels, 1, sharex=True,
+                        gridspec_kw={"height_ratios": [2] * (panels - 1) + [1]})
+    ax_res = axes[-1]
+    for ax, (name, ylabel, measured, fitted, color) in zip(axes, channels):
+        ax.plot(t, 1e3 * measured, ".", ms=2, color="0.45", label=measured_label)
+        ax.plot(t, 1e3 * fitted, color="C3", lw=1.1, label="fitted")
+        ax.set_ylabel(ylabel)
+        ax_res.plot(t, 1e3 * (measured - fitted), color=color, lw=0.7, label=name)
+    axes[0].legend(fontsize=8, loc="upper right")
+    if trace.uplift is not None:
+        ax_res.legend(fontsize=8, loc="upper right", ncol=2)
+    ax_res.axhline(0.0, color="k", lw=0.5)
+    ax_res.set_ylabel("residual [mm]")
+    ax_res.set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    conv = "converged" if fit.converged else "NOT converged"
+    axes[0].set_title((title + "\n" if title else "") + f"{_fit_values(fit)}; rms residual "
+                      f"{1e3 * fit.rms:.3g} mm, {conv}", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def plot_joint_fit(traces, fit, *, title=None):
+    """Measured and fitted displacement of each trace of a joint fit, one panel each.
+    Returns a matplotlib Figure (no pyplot)."""
+    import pathlib
+
+    fig = new_figure(figsize=(9, 2.0 * len(traces) + 0.8))
+    axes = np.atleast_1d(fig.subplots(len(traces), 1, sharex=True))
+    for ax, tr, resp, d in zip(axes, traces, fit.responses, fit.per_trace):
+        ax.plot(tr.t, 1e3 * np.asarray(tr.u), ".", ms=2, color="0.45", label="measured")
+        ax.plot(tr.t, 1e3 * np.asarray(resp.u), color="C3", lw=1.1, label="fitted")
+        ax.set_ylabel("u [mm]")
+        ax.set_title(f"{pathlib.Path(d['source']).name}: rms residual "
+                     f"{1e3 * d['rms']:.3g} mm", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle((title + "\n" if title else "") + _fit_values(fit), fontsize=10)
+    fig.tight_layout()
+    return fig

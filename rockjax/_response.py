@@ -85,6 +85,16 @@ class Response(eqx.Module):
         a batch, an object array holding one such array per member."""
         return self._each(lambda m: np.asarray(m.impact_times)[: int(m.n_impacts)])
 
+    def peak_theta(self, structure, model) -> float:
+        """The peak rotation |theta| [rad] of one run of `model` (a `rockjax.get_model`
+        model): from the exact `peak_u` where the model maps u to theta (the SDOF models),
+        else the largest |theta| on the output grid up to overturning."""
+        if model.kinematics_of_u:
+            return abs(float(model.theta_uplift_of_u(structure, self.peak_u)[0]))
+        ts, theta = np.asarray(self.ts), np.abs(np.asarray(self.theta))
+        t_ot = float(self.t_overturn)
+        return float(np.max(theta[ts <= t_ot] if np.isfinite(t_ot) else theta))
+
     def summary(self) -> dict | list:
         """The results as plain Python (SI units: m, s), for JSON: `peak_u` [m] and `t_peak`
         [s] (when |u| peaked, from the cubic Hermite interpolant of u, v on `ts`),

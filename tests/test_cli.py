@@ -282,4 +282,65 @@ def test_no_message_rewriting_in_the_cli():
     for path in pathlib.Path(rockjax.cli.__file__).parent.glob("*.py"):
         src = path.read_text()
         assert not re.search(r"^import re$|\bre\.(sub|compile)\(", src, re.M), path.name
-        assert "cli_message(" not in src and "str(e).replace" not in src, path.name
+        assert "cli_message" not in src and "str(e).replace" not in src, path.name
+
+
+def test_an_error_about_one_value_names_the_option_and_the_value(capsys, monkeypatch):
+    """`ParameterError(value=...)`: "--flag VALUE: message" on the command line, and
+    "param='VALUE': message" in Python; it survives pickling."""
+    import pickle
+
+    from rockjax.cli import sweep
+
+    error = rockjax.ParameterError("no record files here", param="records", value="quakes/")
+    assert str(error) == "records='quakes/': no record files here"
+    assert pickle.loads(pickle.dumps(error)).value == "quakes/"
+
+    def run(args):
+        raise error
+
+    monkeypatch.setattr(sweep, "run", run)
+    assert main(["sweep", "--record", "r.txt"]) == 2
+    assert (capsys.readouterr().err.strip()
+            == "rockjax sweep: error: --record quakes/: no record files here")
+
+
+def test_trace_errors_name_the_argument_that_fixes_them(tmp_path):
+    """A `TraceError` carries the argument (and a value) that fixes it; the command line
+    writes that argument as its own option, the message otherwise unchanged."""
+    import identification
+    from rockjax.cli import fit
+    from rockjax.cli._common import parameter_message
+
+    path = tmp_path / "t.csv"
+    path.write_text("time,disp,temp\n0,0.1,3\n")
+    with pytest.raises(identification.TraceError) as e:
+        identification.read_trace(path)
+    assert e.value.param == "columns"
+    assert str(e.value).endswith("name the columns with columns={'t': ..., 'u': ...}")
+    cli = parameter_message(e.value, fit.FLAGS)
+    assert cli == e.value.message + "; name the columns with --columns t=NAME,u=NAME"
+    assert parameter_message(e.value, {}) == str(e.value)  # no option: the Python advice
+
+
+def test_fit_figures_live_in_plotting(tmp_path):
+    """`rockjax._plotting.plot_fit` (with the uplift panel when the trace has one) and
+    `plot_joint_fit`: the figures of `rockjax fit --plot`, drawn from any fit result."""
+    from types import SimpleNamespace
+
+    from rockjax._plotting import plot_fit, plot_joint_fit
+
+    t = np.linspace(0.0, 1.0, 50)
+    u, up = 0.05 * np.cos(6 * t), 0.01 * np.abs(np.sin(6 * t))
+    fit = SimpleNamespace(names=("k_f", "r"), values={"k_f": 5e5, "r": 0.7},
+                          stderr={"k_f": 1e3, "r": 0.01}, converged=True, rms=1e-4,
+                          response=SimpleNamespace(u=u + 1e-4, uplift=up))
+    with_uplift = plot_fit(SimpleNamespace(t=t, u=u, uplift=up), fit, title="T")
+    assert len(with_uplift.axes) == 3 and "k_f = 5e+05" in with_uplift.axes[0].get_title()
+    assert len(plot_fit(SimpleNamespace(t=t, u=u, uplift=None), fit).axes) == 2
+    joint = SimpleNamespace(**vars(fit), responses=[fit.response] * 2,
+                            per_trace=[{"source": "a.csv", "rms": 1e-4}] * 2)
+    fig = plot_joint_fit([SimpleNamespace(t=t, u=u)] * 2, joint)
+    assert len(fig.axes) == 2
+    fig.savefig(tmp_path / "j.png")
+    assert (tmp_path / "j.png").stat().st_size > 1000

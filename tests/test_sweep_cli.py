@@ -22,7 +22,7 @@ from test_records import synthetic, write_at2, write_one_column, write_two_colum
 
 import rockjax
 from rockjax.cli import main
-from rockjax.cli._common import _scales, parameter_message, split_record_units
+from rockjax.cli._common import parameter_message, scale_list as _scales, split_record_units
 from rockjax.cli.sweep import FLAGS
 
 SCALES = [0.5, 1.0, 2.5]

@@ -362,7 +362,12 @@ def test_missing_values_refused_or_dropped(tmp_path):
                        r"3 row\(s\) of the file have missing values \(line\(s\) 5, 10, 13\); "
                        r"pass drop_nan=True to drop them") as e:
         read_trace(p)
-    assert "pass --drop-nan to drop them" in e.value.cli_message
+    # the error names its parameter; the command line spells it as its option
+    from rockjax.cli import fit as fit_cli
+    from rockjax.cli._common import parameter_message
+
+    assert e.value.param == "drop_nan"
+    assert "pass --drop-nan to drop them" in parameter_message(e.value, fit_cli.FLAGS)
     with pytest.warns(identification.DroppedRowsWarning,
                       match=re.escape(f"{p}: dropped 3 row(s) with missing (NaN) values "
                                       "(line(s) 5, 10, 13)")):

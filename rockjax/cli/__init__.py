@@ -9,18 +9,10 @@ from __future__ import annotations
 
 import sys
 
-from rockjax import ParameterError
+from rockjax._cache import enable_compile_cache
 
 from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
-from ._common import (
-    _first_line,
-    _Parser,
-    CLIError,
-    COMMON_FLAGS,
-    enable_compile_cache,
-    EXIT_USAGE,
-    parameter_message,
-)
+from ._common import CLIError, COMMON_FLAGS, error_text, EXIT_USAGE, Parser
 
 #: the sub-commands, in the order `rockjax --help` lists them
 COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
@@ -39,21 +31,19 @@ def _version():
 
     import rockjax
 
-    stack = []
-    for pkg in ("jax", "diffrax", "equinox", "optax"):
+    def of(pkg):
         try:
-            stack.append(f"{pkg} {version(pkg)}")
+            return version(pkg)
         except PackageNotFoundError:  # pragma: no cover - a broken environment
-            stack.append(f"{pkg} ?")
-    return f"rockjax {rockjax.__version__} ({', '.join(stack)})"
+            return "?"
+
+    stack = ", ".join(f"{pkg} {of(pkg)}" for pkg in ("jax", "diffrax", "equinox", "optax"))
+    return f"rockjax {rockjax.__version__} ({stack})"
 
 
 def build_parser():
-    p = _Parser(
-        prog="rockjax",
-        description="Differentiable simulator of rigid structures rocking on a two-spring "
-        "foundation (SI units throughout).",
-    )
+    p = Parser(prog="rockjax", description="Differentiable simulator of rigid structures "
+               "rocking on a two-spring foundation (SI units throughout).")
     p.add_argument("--version", action="version", version=_version())
     p.add_argument(
         "--no-compile-cache", dest="compile_cache", action="store_false",
@@ -61,7 +51,7 @@ def build_parser():
         "$ROCKJAX_COMPILE_CACHE or ~/.cache/rockjax/jax; ROCKJAX_COMPILE_CACHE=off also "
         "turns it off): a second run of a command skips most of its compile time",
     )
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for command in COMMANDS:
         command.add_parser(sub)
     return p
@@ -93,16 +83,13 @@ def main(argv=None, *, compile_cache=None):
         enable_compile_cache(disabled=not args.compile_cache)
     try:
         return args.func(args)
-    except ParameterError as e:  # the library names the parameter; the command its option
-        print(f"rockjax {args.command}: error: {parameter_message(e, flags(args.command))}",
-              file=sys.stderr)
-        return EXIT_USAGE
     except (CLIError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as e:
-        print(f"rockjax {args.command}: error: {_first_line(e)}", file=sys.stderr)
-        return EXIT_USAGE
+        # a library error that names its parameter reads with the command's option for it
+        print(f"rockjax {args.command}: error: {error_text(e, flags(args.command))}",
+              file=sys.stderr)
     except OSError as e:
         print(f"rockjax {args.command}: error: {e}", file=sys.stderr)
-        return EXIT_USAGE
+    return EXIT_USAGE
 
 
 __all__ = ["build_parser", "CLIError", "COMMANDS", "EXIT_USAGE", "main"]

@@ -11,9 +11,7 @@ over gloo), so every process ends with every result and process 0 writes them.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import ctypes
 import dataclasses
 import math
 import os
@@ -22,9 +20,9 @@ import sys
 import time
 
 import rockjax
-from rockjax._distributed import ProcessError
+from rockjax._distributed import ProcessError, stdout_to_stderr
 
-from ._common import _positive_int, CLIError, EXIT_USAGE
+from ._common import CLIError, converter, EXIT_USAGE, positive_int
 
 #: how long a process waits for the coordinator and the others by default [s] (JAX's 300)
 DEFAULT_TIMEOUT = 300.0
@@ -41,53 +39,25 @@ def add_distributed_arguments(parser):
         "0 gathers the results and writes the CSV, JSON and plot exactly as one process "
         "would, the others write nothing. Without these flags nothing connects anywhere.",
     )
-    g.add_argument(
-        "--distributed", action="store_true",
-        help="start jax.distributed from the cluster's environment (JAX detects SLURM, Open "
-        "MPI, ...: e.g. srun rockjax sweep ... --distributed); flags given beside it win",
-    )
-    g.add_argument(
-        "--coordinator", metavar="HOST:PORT",
-        help="address of process 0, which listens on PORT (with --num-processes and "
-        "--process-id)",
-    )
-    g.add_argument(
-        "--num-processes", type=_positive_int("--num-processes"), metavar="N",
-        help="how many processes take part (with --coordinator and --process-id)",
-    )
-    g.add_argument(
-        "--process-id", type=_process_id, metavar="I",
-        help="this process's index, 0 to N-1; 0 runs the coordinator and writes the outputs",
-    )
-    g.add_argument(
-        "--coordinator-timeout", type=_timeout, default=None, metavar="S",
-        help=f"seconds to wait for the coordinator and every process to connect (default "
-        f"{DEFAULT_TIMEOUT:g})",
-    )
-
-
-def _process_id(text):
-    try:
-        i = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--process-id must be an integer, got {text!r}"
-        ) from None
-    if i < 0:
-        raise argparse.ArgumentTypeError(f"--process-id must be 0 or more, got {i}")
-    return i
-
-
-def _timeout(text):
-    try:
-        x = float(text)
-    except ValueError:
-        x = math.nan
-    if not (math.isfinite(x) and x > 0):
-        raise argparse.ArgumentTypeError(
-            f"--coordinator-timeout must be a positive number of seconds, got {text!r}"
-        )
-    return x
+    g.add_argument("--distributed", action="store_true",
+                   help="start jax.distributed from the cluster's environment (JAX detects "
+                   "SLURM, Open MPI, ...: e.g. srun rockjax sweep ... --distributed); flags "
+                   "given beside it win")
+    g.add_argument("--coordinator", metavar="HOST:PORT", help="address of process 0, which "
+                   "listens on PORT (with --num-processes and --process-id)")
+    g.add_argument("--num-processes", type=positive_int("--num-processes"), metavar="N",
+                   help="how many processes take part (with --coordinator and --process-id)")
+    g.add_argument("--process-id", metavar="I",
+                   type=converter("--process-id", int, lambda i: i >= 0, "be 0 or more"),
+                   help="this process's index, 0 to N-1; 0 runs the coordinator and writes "
+                   "the outputs")
+    g.add_argument("--coordinator-timeout", default=None, metavar="S",
+                   type=converter("--coordinator-timeout", float,
+                                  lambda x: math.isfinite(x) and x > 0,
+                                  "be a positive number of seconds",
+                                  noun="a positive number of seconds"),
+                   help=f"seconds to wait for the coordinator and every process to connect "
+                   f"(default {DEFAULT_TIMEOUT:g})")
 
 
 def _host_port(text):
@@ -178,7 +148,7 @@ def start(args):
               "process_id": args.process_id,
               "initialization_timeout": max(1, math.ceil(deadline - time.monotonic()))}
     quiet = contextlib.ExitStack()
-    quiet.enter_context(_stdout_to_stderr())  # until stop(): gloo prints to C's stdout
+    quiet.enter_context(stdout_to_stderr())  # until stop(): gloo prints to C's stdout
     try:
         jax.distributed.initialize(**kwargs)
     except BaseException as e:
@@ -236,27 +206,3 @@ def _wait_for(host, port, text, timeout):
                     "--coordinator-timeout"
                 ) from None
         time.sleep(min(0.25, max(0.0, left)))
-
-
-@contextlib.contextmanager
-def _stdout_to_stderr():
-    """Send file descriptor 1 to 2 while connected: gloo prints its connection messages
-    ('[Gloo] Rank 0 is connected to 1 peer ranks') to C's stdout, at times of its own,
-    where they would mix with the report or the --json object."""
-    sys.stdout.flush()
-    try:
-        saved = os.dup(1)
-        os.dup2(2, 1)
-    except OSError:  # no file descriptors 1 or 2 to move
-        yield
-        return
-    try:
-        yield
-    finally:
-        sys.stdout.flush()
-        try:
-            ctypes.CDLL(None).fflush(None)
-        except (OSError, AttributeError):  # pragma: no cover - no C library to flush
-            pass
-        os.dup2(saved, 1)
-        os.close(saved)

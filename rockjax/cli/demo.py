@@ -12,48 +12,38 @@ import pathlib
 import numpy as np
 
 import rockjax
-from rockjax import _plotting, datasets
+from rockjax import datasets
+from rockjax._plotting import plot_fit, plot_pushover, plot_response, pushover_curves
 
-from ._common import _derived_table, record_info, record_line
-from .fit import _fit_stats_lines, _fit_trace, _fit_value_table, plot_fit
+from ._common import derived_table, record_info, record_line, save
+from .fit import fit_stats_lines, fit_trace, fit_value_table
 
 #: the synthetic decay trace shipped with rockjax that the identification stage fits
 _DEMO_TRACE = "synthetic_decay_noisy"
 
 
 def add_parser(subparsers):
-    d = subparsers.add_parser(
-        "demo", help="run the demonstration and write plots into ./rockjax-demo/"
-    )
+    d = subparsers.add_parser("demo", help="run the demonstration and write plots into "
+                              "./rockjax-demo/")
     d.add_argument("--out", default="rockjax-demo", help="output folder (default ./rockjax-demo)")
     d.set_defaults(func=run)
     return d
 
 
-def _save(fig, path):
-    fig.savefig(path, dpi=150)
-    return path
-
-
 def _demo_pushover(s, out):
     """Pushover plot; the derived table and the closed forms' errors against the numerics."""
-    curves = _plotting.pushover_curves(s)
-    fig = _plotting.plot_pushover(
-        s, curves, title="McManus column (Table 1): pushover, cf. Figs 6 and 8"
-    )
-    path = _save(fig, out / "pushover.png")
+    curves = pushover_curves(s)
+    path = save(plot_pushover(s, curves, title="McManus column (Table 1): pushover, cf. "
+                              "Figs 6 and 8"), out / "pushover.png")
     d = s.derived()
     u = curves["u"]
     mask = (u >= 1.2 * d["u_crit"]) & (u <= 0.95 * d["u_overturn"])
-    err_exact = np.max(np.abs(curves["exact"] - curves["numerical"])[mask]) / d["P_crit"]
-    err_simpl = np.max(np.abs(curves["simplified"] - curves["numerical"])[mask]) / d["P_crit"]
-    print("rockjax demo: McManus (1980) column of the paper's Table 1")
-    print()
-    print(_derived_table(d))
-    print()
-    print("closed forms against the numerical pushover, over [1.2 u_crit, 0.95 u_overturn]:")
-    print(f"  exact (Eq 18)      max |error| = {100 * err_exact:.2e} % of P_crit")
-    print(f"  simplified (Eq 20) max |error| = {100 * err_simpl:.3f} % of P_crit")
+    err = {k: 100 * np.max(np.abs(curves[k] - curves["numerical"])[mask]) / d["P_crit"]
+           for k in ("exact", "simplified")}
+    print("rockjax demo: McManus (1980) column of the paper's Table 1\n", derived_table(d),
+          "\nclosed forms against the numerical pushover, over [1.2 u_crit, 0.95 u_overturn]:",
+          f"  exact (Eq 18)      max |error| = {err['exact']:.2e} % of P_crit",
+          f"  simplified (Eq 20) max |error| = {err['simplified']:.3f} % of P_crit", sep="\n")
     return path
 
 
@@ -66,14 +56,10 @@ def _demo_free_vibration(s, out):
     free_exact = rockjax.simulate(s, release, 4.0, ts=ts, model="exact")
     # the reference: the rigid body itself on two springs (2 DOF)
     free_2dof = rockjax.simulate(s, release, 4.0, ts=ts, model="two_spring_2dof")
-    print(
-        f"  free vibration: {int(free.n_impacts)} impacts (SDOF simplified), "
-        f"{int(free_2dof.n_impacts)} (2-DOF body)"
-    )
-    fig = _plotting.plot_response(
-        s,
-        free,
-        label="simplified (SDOF)",
+    print(f"  free vibration: {int(free.n_impacts)} impacts (SDOF simplified), "
+          f"{int(free_2dof.n_impacts)} (2-DOF body)")
+    fig = plot_response(
+        s, free, label="simplified (SDOF)",
         overlay=[("exact (SDOF)", free_exact), ("2-DOF rigid body", free_2dof)],
         title=f"Free vibration from u0 = 0.10 m, r = {float(s.restitution):.3f} (Eq 3), impact "
         "rule paper, cf. Fig 9",
@@ -81,7 +67,7 @@ def _demo_free_vibration(s, out):
         "it vibrates on its undamped springs, without uplift or loss (TwoSpring2DOF(damping=c_f)"
         " damps it)",
     )
-    return _save(fig, out / "free_vibration.png"), free, free_exact
+    return save(fig, out / "free_vibration.png"), free, free_exact
 
 
 def _demo_ground_motion():
@@ -107,14 +93,14 @@ def _demo_earthquake(s, out):
         "rigid_body": rockjax.simulate(s, gm, t1, model="rigid_body"),
         "2-DOF body": rockjax.simulate(s, gm, t1, model="two_spring_2dof"),
     }
-    fig = _plotting.plot_response(
+    fig = plot_response(
         s, runs["simplified SDOF"], ground_motion=gm, label="simplified (SDOF, Eq 1)",
         overlay=[("rigid_body (the body's 1-DOF equation)", runs["rigid_body"]),
                  ("2-DOF rigid body", runs["2-DOF body"])],
         title=f"{name}, scale 1.0, impact rule paper, r = {float(s.restitution):.3f} (Eq 3), "
         "cf. Fig 10",
     )
-    return _save(fig, out / "earthquake.png"), runs, name
+    return save(fig, out / "earthquake.png"), runs, name
 
 
 def _print_runs(runs):
@@ -123,10 +109,8 @@ def _print_runs(runs):
     print(f"{'run':<34}{'peak |u| [mm]':>14}{'peak uplift [mm]':>18}{'impacts':>9}  status")
     for label, res in runs:
         sm = res.summary()
-        print(
-            f"{label:<34}{1e3 * sm['peak_u']:>14.2f}{1e3 * sm['peak_uplift']:>18.2f}"
-            f"{sm['n_impacts']:>9d}  {sm['status']}"
-        )
+        print(f"{label:<34}{1e3 * sm['peak_u']:>14.2f}{1e3 * sm['peak_uplift']:>18.2f}"
+              f"{sm['n_impacts']:>9d}  {sm['status']}")
 
 
 def _demo_identification(s, out):
@@ -137,29 +121,18 @@ def _demo_identification(s, out):
     truth = identification.synthetic_truth(_DEMO_TRACE)
     # u0 is fitted too: the first measured sample carries the noise, and holding u0 there
     # would bias k_f and r (see README, identification)
-    fit = _fit_trace(
-        trace, s, ("k_f", "r", "u0"), model=truth.get("model", "simplified"), progress=False
-    )
-    fig = plot_fit(
-        trace,
-        fit,
-        measured_label="SYNTHETIC measured trace",
-        title=f"Identification of k_f and r from {_DEMO_TRACE} (SYNTHETIC: true k_f = "
-        f"{truth['k_f']:.4g} N/m, r = {truth['r']:.3g}), started from Table 1",
-    )
-    path = _save(fig, out / "identification.png")
-    print()
+    fit = fit_trace(trace, s, ("k_f", "r", "u0"), model=truth.get("model", "simplified"),
+                    progress=False)
+    fig = plot_fit(trace, fit, measured_label="SYNTHETIC measured trace",
+                   title=f"Identification of k_f and r from {_DEMO_TRACE} (SYNTHETIC: true "
+                   f"k_f = {truth['k_f']:.4g} N/m, r = {truth['r']:.3g}), started from Table 1")
     # (lower-case "synthetic" here: "SYNTHETIC" on stdout flags the ground-motion fallback)
-    print(
-        f"identification: fit of k_f, r (and u0) to the synthetic decay trace {_DEMO_TRACE} "
-        f"(a rockjax simulation with noise, not a measurement; {trace.n} samples, "
-        f"{trace.duration:.3g} s), started from Table 1 (k_f = {float(s.k_f):.4g} N/m, "
-        f"r = {float(s.restitution):.3f} from Eq 3)"
-    )
-    print(_fit_value_table(fit, truth=truth))
-    for line in _fit_stats_lines(fit):
-        print(line)
-    return path
+    print(f"\nidentification: fit of k_f, r (and u0) to the synthetic decay trace {_DEMO_TRACE} "
+          f"(a rockjax simulation with noise, not a measurement; {trace.n} samples, "
+          f"{trace.duration:.3g} s), started from Table 1 (k_f = {float(s.k_f):.4g} N/m, "
+          f"r = {float(s.restitution):.3f} from Eq 3)")
+    print(fit_value_table(fit, truth=truth), *fit_stats_lines(fit), sep="\n")
+    return save(fig, out / "identification.png")
 
 
 def run(args):
@@ -168,24 +141,15 @@ def run(args):
     s = rockjax.mcmanus_column()
     written = [_demo_pushover(s, out)]
     path, free, free_exact = _demo_free_vibration(s, out)
-    written.append(path)
-    path, quake, name = _demo_earthquake(s, out)
-    written.append(path)
-    _print_runs(
-        (
-            ("free vibration, simplified SDOF", free),
-            ("free vibration, exact SDOF", free_exact),
-            *((f"earthquake, {k}", v) for k, v in quake.items()),
-        )
-    )
-    print(
-        "  the paper's SDOF (Eq 1) over-predicts the rigid body's earthquake response. One "
-        "record is a sensitive test: on 7 records x 4 scales the median peak error against "
-        "the 2-DOF body is 37 % for the SDOF, 15 % for rigid_body, the body's own one-DOF "
-        "equation (benchmarks/fidelity.md; which model for which scene: docs/models.md)"
-    )
+    path2, quake, name = _demo_earthquake(s, out)
+    written += [path, path2]
+    _print_runs((("free vibration, simplified SDOF", free),
+                 ("free vibration, exact SDOF", free_exact),
+                 *((f"earthquake, {k}", v) for k, v in quake.items())))
+    print("  the paper's SDOF (Eq 1) over-predicts the rigid body's earthquake response. One "
+          "record is a sensitive test: on 7 records x 4 scales the median peak error against "
+          "the 2-DOF body is 37 % for the SDOF, 15 % for rigid_body, the body's own one-DOF "
+          "equation (benchmarks/fidelity.md; which model for which scene: docs/models.md)")
     written.append(_demo_identification(s, out))
-    print()
-    for p in written:
-        print(f"wrote {p}")
+    print("", *(f"wrote {p}" for p in written), sep="\n")
     return 0

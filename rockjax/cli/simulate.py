@@ -9,29 +9,28 @@ import sys
 import numpy as np
 
 import rockjax
-from rockjax import _plotting
+from rockjax._plotting import plot_response
 
 from ._common import (
-    _check_out_dir,
-    _check_png,
-    _check_r,
-    _check_t1_steps,
-    _finite_float,
-    _load_structure,
-    _positive_float,
-    _write_csv,
     add_model_arguments,
+    add_outputs,
     add_plausibility_argument,
+    check_outputs,
     CLIError,
     COMMON_FLAGS,
     fidelity_note,
+    finite_float,
+    load_structure,
+    MAX_STEPS,
     model_info,
     model_line,
+    positive_float,
     RECORD_FLAGS,
     record_info,
     record_line,
     record_units,
     RECORD_UNITS_METAVAR,
+    write_columns,
 )
 
 #: the library parameters that the options of `rockjax simulate` set (errors name the option)
@@ -52,43 +51,21 @@ def add_parser(subparsers):
     )
     m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
     add_plausibility_argument(m)
-    m.add_argument("--u0", type=_finite_float("--u0"), metavar="M", help="release displacement [m]")
-    m.add_argument(
-        "--v0",
-        type=_finite_float("--v0"),
-        default=0.0,
-        metavar="V",
-        help="release velocity [m/s] (default 0)",
-    )
+    m.add_argument("--u0", type=finite_float("--u0"), metavar="M", help="release displacement [m]")
+    m.add_argument("--v0", type=finite_float("--v0"), default=0.0, metavar="V",
+                   help="release velocity [m/s] (default 0)")
     m.add_argument("--record", metavar="FILE", help="ground-motion record file")
     m.add_argument("--units", type=record_units, metavar=RECORD_UNITS_METAVAR,
                    help="units of the record's values (other spellings: m/s^2, Gal, ...)")
-    m.add_argument(
-        "--scale",
-        type=_finite_float("--scale"),
-        default=1.0,
-        help="scale factor on the record (default 1)",
-    )
-    m.add_argument(
-        "--record-dt",
-        type=_positive_float("--record-dt"),
-        metavar="DT",
-        help="sample step [s] of a one-column record",
-    )
-    m.add_argument(
-        "--t1",
-        type=_positive_float("--t1"),
-        metavar="T",
-        help="end time [s] (default: 4 s, or the record's length)",
-    )
+    m.add_argument("--scale", type=finite_float("--scale"), default=1.0,
+                   help="scale factor on the record (default 1)")
+    m.add_argument("--record-dt", type=positive_float("--record-dt"), metavar="DT",
+                   help="sample step [s] of a one-column record")
+    m.add_argument("--t1", type=positive_float("--t1"), metavar="T",
+                   help="end time [s] (default: 4 s, or the record's length)")
     add_model_arguments(m, "model of the fidelity ladder (default simplified)")
-    m.add_argument(
-        "--out",
-        metavar="FILE.csv",
-        help="write the time history as CSV, header t_s,u_m,v_m_s,theta_rad,uplift_m",
-    )
-    m.add_argument("--plot", metavar="FILE.png", help="write a Fig 9/10-style plot")
-    m.add_argument("--json", action="store_true", help="print a JSON summary and nothing else")
+    add_outputs(m, "write a Fig 9/10-style plot", out="write the time history as CSV, header "
+                "t_s,u_m,v_m_s,theta_rad,uplift_m", json="print a JSON summary and nothing else")
     m.set_defaults(func=run)
     return m
 
@@ -100,14 +77,11 @@ def _build_excitation(args, s):
     if args.record is None:
         if args.u0 is None:
             raise CLIError("give --u0 M (free vibration) or --record FILE (ground motion)")
-        uo = float(s.u_overturn)
-        if abs(args.u0) > uo:
-            raise CLIError(
-                f"--u0 {args.u0:g} m is beyond u_overturn = {uo:.4g} m: the structure would "
-                "overturn at once (--u0 is in metres: 100 mm is --u0 0.1)"
-            )
-        excitation = rockjax.FreeVibration(args.u0, args.v0)
-        return excitation, None, {"type": "free_vibration", "u0": args.u0, "v0": args.v0}
+        if abs(args.u0) > (uo := float(s.u_overturn)):
+            raise CLIError(f"--u0 {args.u0:g} m is beyond u_overturn = {uo:.4g} m: the structure "
+                           "would overturn at once (--u0 is in metres: 100 mm is --u0 0.1)")
+        return (rockjax.FreeVibration(args.u0, args.v0), None,
+                {"type": "free_vibration", "u0": args.u0, "v0": args.v0})
     rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt,
                               check_plausible=args.check_plausible)
     gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
@@ -115,23 +89,22 @@ def _build_excitation(args, s):
 
 
 def _end_time(args, gm):
-    if args.t1 is not None:
-        return args.t1
-    if gm is not None:
-        return float(gm.duration)
-    return 4.0
+    """--t1, else the record's length or 4 s; a one-line error naming --t1, rather than
+    numpy's size error, for absurd run lengths."""
+    t1 = args.t1 if args.t1 is not None else 4.0 if gm is None else float(gm.duration)
+    dt = _FREE_DT if gm is None else float(gm.dt)
+    if not t1 / dt <= MAX_STEPS:
+        raise CLIError(f"--t1 {t1:g} s is {t1 / dt:.3g} output samples of {dt:g} s, more than "
+                       f"{MAX_STEPS:,}; shorten --t1")
+    return t1
 
 
 def _write_plot(args, s, res, gm, read):
-    what = (
-        f"release u0 = {args.u0} m"
-        if gm is None
-        else f"{pathlib.Path(read['file']).name} x {args.scale:g} "
-        f"(PGA {read['scaled_pga_g']:.3g} g)"
-    )
-    title = f"{model_line(model_info(args))}; {what}"
-    fig = _plotting.plot_response(s, res, ground_motion=gm, title=title)
-    fig.savefig(args.plot, dpi=150)
+    what = (f"release u0 = {args.u0} m" if gm is None else
+            f"{pathlib.Path(read['file']).name} x {args.scale:g} "
+            f"(PGA {read['scaled_pga_g']:.3g} g)")
+    plot_response(s, res, ground_motion=gm, title=f"{model_line(model_info(args))}; {what}"
+                  ).savefig(args.plot, dpi=150)
 
 
 #: units of the JSON result's values
@@ -143,67 +116,40 @@ UNITS = {
 }
 
 
-def _peak_theta(s, res, model, t_overturn):
-    """The peak rotation [rad]: from the exact peak |u| where the model maps u to theta
-    (the SDOF models), else the largest |theta| on the output grid up to overturning."""
-    if model.kinematics_of_u:
-        return abs(float(model.theta_uplift_of_u(s, res.peak_u)[0]))
-    ts, theta = np.asarray(res.ts), np.abs(np.asarray(res.theta))
-    keep = ts <= t_overturn if t_overturn is not None else np.ones(ts.shape, bool)
-    return float(np.max(theta[keep]))
-
-
 def _result(args, s, res, t1, read):
     """The JSON result: what produced it, what was read, and the response (SI units)."""
-    summary = res.summary()
-    theta = _peak_theta(s, res, rockjax.get_model(args.model, args.impact), summary["t_overturn"])
-    r = float(s.restitution) if args.r is None else args.r
-    out = {**model_info(args), "r": r, "r_from": "Eq 3" if args.r is None else "--r",
-           "excitation": read, "t1": t1}
-    out.update(summary)
-    out["peak_theta"] = theta
-    out["peak_theta_over_alpha_c"] = theta / float(s.alpha_c)
-    out["message"] = res.message
-    out["units"] = UNITS
-    return out
+    theta = res.peak_theta(s, rockjax.get_model(args.model, args.impact))
+    return {**model_info(args), "r": float(s.restitution) if args.r is None else args.r,
+            "r_from": "Eq 3" if args.r is None else "--r", "excitation": read, "t1": t1,
+            **res.summary(), "peak_theta": theta,
+            "peak_theta_over_alpha_c": theta / float(s.alpha_c), "message": res.message,
+            "units": UNITS}
 
 
 def _print_summary(args, out):
     read = out["excitation"]
-    if read["type"] == "ground_motion":
-        print(f"record        {record_line(read)}")
-    else:
-        print(f"release       u0 = {read['u0']:g} m, v0 = {read['v0']:g} m/s")
-    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s")
-    print(f"status        {out['status']}")
-    print(f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s")
-    ratio = out["peak_theta_over_alpha_c"]
-    print(f"peak theta    {out['peak_theta']:.6g} rad = {ratio:.4g} alpha_c")
-    print(f"peak uplift   {out['peak_uplift']:.6g} m")
-    print(f"impacts       {out['n_impacts']}")
+    print(f"record        {record_line(read)}" if read["type"] == "ground_motion" else
+          f"release       u0 = {read['u0']:g} m, v0 = {read['v0']:g} m/s")
+    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s\n"
+          f"status        {out['status']}\n"
+          f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s\n"
+          f"peak theta    {out['peak_theta']:.6g} rad = {out['peak_theta_over_alpha_c']:.4g} "
+          f"alpha_c\npeak uplift   {out['peak_uplift']:.6g} m\nimpacts       {out['n_impacts']}")
     if out["t_overturn"] is not None:
         print(f"t_overturn    {out['t_overturn']:.6g} s")
     else:
         print(f"residual u    {out['residual_u']:.6g} m at t = {out['t_end']:.6g} s")
-    if args.out:
-        print(f"time history written to {args.out}")
-    if args.plot:
-        print(f"plot written to {args.plot}")
+    for what, path in (("time history", args.out), ("plot", args.plot)):
+        if path:
+            print(f"{what} written to {path}")
 
 
 def run(args):
-    s = _load_structure(args.structure, args.check_plausible)
-    _check_png(args.plot)
-    _check_out_dir("--out", args.out)
-    _check_out_dir("--plot", args.plot)
-    _check_r(args.r)
+    s = load_structure(args.structure, args.check_plausible)
+    check_outputs(args)
     excitation, gm, read = _build_excitation(args, s)
     t1 = _end_time(args, gm)
-    _check_t1_steps(t1, _FREE_DT if gm is None else float(gm.dt), "output samples")
-    if gm is None:
-        ts = np.linspace(0.0, t1, max(2, int(round(t1 / _FREE_DT)) + 1))
-    else:
-        ts = None
+    ts = None if gm is not None else np.linspace(0.0, t1, max(2, int(round(t1 / _FREE_DT)) + 1))
     res = rockjax.simulate(s, excitation, t1, ts=ts, model=args.model, r=args.r,
                            impact=args.impact, fidelity_warning=False)
     out = _result(args, s, res, t1, read)
@@ -211,9 +157,8 @@ def run(args):
     if out["fidelity_warning"]:
         print(f"warning: {out['fidelity_warning']}", file=sys.stderr)
     if args.out:
-        cols = {k: np.asarray(getattr(res, k)) for k in ("ts", "u", "v", "theta", "uplift")}
-        cols["t"] = cols.pop("ts")
-        _write_csv(args.out, cols, CSV_COLUMNS)
+        write_columns(args.out, {k: np.asarray(getattr(res, "ts" if k == "t" else k))
+                                 for k in CSV_COLUMNS}, CSV_COLUMNS)
     if args.plot:
         _write_plot(args, s, res, gm, read)
     if args.json:

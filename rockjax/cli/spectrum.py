@@ -2,54 +2,34 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
 import numpy as np
 
 import rockjax
+from rockjax._plotting import new_figure
 from rockjax._spectrum import frequency_parameter
 
 from ._common import (
-    _check_out_dir,
-    _check_png,
-    _check_r,
-    _load_structure,
-    _scale_list,
-    _scale_range,
     add_model_arguments,
+    add_outputs,
     add_plausibility_argument,
+    check_outputs,
     CLIError,
     COMMON_FLAGS,
+    load_structure,
     model_info,
     model_line,
+    number_list,
+    save,
 )
 
 #: the library parameters that the options of `rockjax spectrum` set (errors name them)
 FLAGS = {**COMMON_FLAGS, "periods": "--periods", "rtol": "--rtol", "kind": "--pulse",
          "structure": "--structure"}
-
 #: --pulse names and the `rockjax.pulses` kinds
 PULSES = {"rectangular": "rectangular", "sine": "one_sine", "cosine": "one_cosine"}
-
-
-def _positive_values(option):
-    """A comma list "0.5,1,2" or a range "START:STOP:N" (N points, inclusive) of positive
-    numbers."""
-
-    def conv(text):
-        t = text.strip()
-        if ":" in t:
-            a, b, n = _scale_range(text, t.split(":"))
-            values = list(np.linspace(a, b, n))
-        else:
-            values = _scale_list(text, t)
-        if not all(math.isfinite(x) and x > 0 for x in values):
-            raise argparse.ArgumentTypeError(f"{option} must be positive and finite, got {text!r}")
-        return [float(f"{x:.12g}") for x in values]
-
-    return conv
 
 
 def add_parser(subparsers):
@@ -66,10 +46,10 @@ def add_parser(subparsers):
                    help="rectangular (Housner), sine (one-sine, Zhang & Makris type A) or "
                    "cosine (one-cosine, type B)")
     which = q.add_mutually_exclusive_group(required=True)
-    which.add_argument("--periods", type=_positive_values("--periods"), metavar="T",
+    which.add_argument("--periods", type=number_list("--periods"), metavar="T",
                        help="pulse periods [s] (rectangular: durations), a list 0.2,0.5,1 "
                        "or a range START:STOP:N")
-    which.add_argument("--ratios", type=_positive_values("--ratios"), metavar="X",
+    which.add_argument("--ratios", type=number_list("--ratios"), metavar="X",
                        help="the same as omega_p / p (rectangular: p t1), a list or a range")
     q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
     add_plausibility_argument(q)
@@ -78,9 +58,7 @@ def add_parser(subparsers):
     q.set_defaults(model="rigid_body")
     q.add_argument("--rtol", type=float, default=1e-3,
                    help="relative width of each final bracket (default 1e-3)")
-    q.add_argument("--plot", metavar="FILE.png", help="write the spectrum plot")
-    q.add_argument("--out", metavar="FILE.csv", help="write the spectrum as CSV (SI units)")
-    q.add_argument("--json", action="store_true", help="print one JSON object and nothing else")
+    add_outputs(q, "write the spectrum plot", out="write the spectrum as CSV (SI units)")
     q.set_defaults(func=run)
     return q
 
@@ -94,10 +72,10 @@ def _periods(args, s):
 
 
 def _print_report(args, sp, info):
-    print(f"overturning spectrum, {sp.kind} pulse ({model_line(info)})")
-    print(f"p = {sp.p:.4g} rad/s, g tan(alpha) = {sp.g_tan_alpha:.4g} m/s2, rtol {sp.rtol:g}")
     x = "p t1" if sp.kind == "rectangular" else "wp/p"
-    print(f"{'period [s]':>11} {x:>7} {'a [m/s2]':>10} {'a/(g tan a)':>12}  {'mode':<13}"
+    print(f"overturning spectrum, {sp.kind} pulse ({model_line(info)})\n"
+          f"p = {sp.p:.4g} rad/s, g tan(alpha) = {sp.g_tan_alpha:.4g} m/s2, rtol {sp.rtol:g}\n"
+          f"{'period [s]':>11} {x:>7} {'a [m/s2]':>10} {'a/(g tan a)':>12}  {'mode':<13}"
           f"{'no impact [m/s2]':>17}")
     for i in np.argsort(sp.periods):
         print(f"{sp.periods[i]:11.4g} {sp.x[i]:7.3f} {sp.amplitude[i]:10.4g} "
@@ -109,11 +87,8 @@ def _print_report(args, sp, info):
 
 
 def run(args):
-    s = _load_structure(args.structure, args.check_plausible)
-    _check_r(args.r)
-    _check_png(args.plot)
-    _check_out_dir("--plot", args.plot)
-    _check_out_dir("--out", args.out)
+    s = load_structure(args.structure, args.check_plausible)
+    check_outputs(args)
     if not 1e-8 <= args.rtol <= 0.1:
         raise CLIError(f"--rtol must lie in [1e-8, 0.1], got {args.rtol}")
     T = _periods(args, s)
@@ -122,11 +97,9 @@ def run(args):
                                       progress=None if not args.json else False)
     info = model_info(args)
     if args.plot:
-        import matplotlib.pyplot as plt
-
-        ax = sp.plot()
-        ax.figure.savefig(args.plot, dpi=150, bbox_inches="tight")
-        plt.close(ax.figure)
+        fig = new_figure(figsize=(6, 4))
+        sp.plot(fig.subplots())
+        save(fig, args.plot, bbox_inches="tight")
     if args.out:
         sp.to_csv(args.out)
     if args.json:

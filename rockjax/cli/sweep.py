@@ -1,17 +1,10 @@
 """`rockjax sweep`: peak responses over structures x scale factors x records (CSV, plot).
 
-Every combination runs through `rockjax.sweep` (the library's one batch engine), one per
-structure; the stages are: check the inputs, load structures and records, run, write the
-CSV (`SweepResult.csv_rows`), then plot (`_plotting.plot_sweeps`) and report.
-
-Records may differ in time step and length: they run together on their common time step
-(each resampled exactly), and each run ends at its own record's end plus `--tail`. The
-units of each record come from its file, or from `FILE:UNITS` / a `--units` after it.
-
-With `--distributed` or `--coordinator/--num-processes/--process-id` the sweep runs as
-several `jax.distributed` processes (`_distributed` starts them; `rockjax.sweep(...,
-processes=)` splits and gathers the runs): process 0 writes the same outputs as one process
-would.
+Reads the structures and records (each record's units from its file, `FILE:UNITS` or a
+`--units` after it), runs each structure through `rockjax.sweep` (the library's one batch
+engine; over several `jax.distributed` processes with `--distributed` or `--coordinator`,
+started by `_distributed`), writes the CSV (`rockjax._sweep.write_csv`), the plot
+(`_plotting.plot_sweeps`) and the report; process 0 writes them.
 """
 
 from __future__ import annotations
@@ -32,44 +25,40 @@ from rockjax._batch import DEFAULT_TAIL
 from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
+from rockjax._suite import expand_folders, RecordFile, unique_labels
 from rockjax._sweep import USABLE, write_csv
 
 from . import _distributed
 from ._common import (
-    _check_out_dir,
-    _check_png,
-    _check_r,
-    _first_line,
-    _load_structure,
-    _MAX_STEPS,
-    _positive_float,
-    _positive_int,
-    _scales,
     add_model_arguments,
+    add_outputs,
     add_plausibility_argument,
+    check_outputs,
     CLIError,
     COMMON_FLAGS,
     converter,
     error_text,
     EXIT_USAGE,
     fidelity_note,
+    first_line,
+    load_structure,
+    MAX_STEPS,
     model_info,
     model_line,
-    parameter_message,
+    positive_float,
+    positive_int,
     RECORD_FLAGS,
     record_info,
     record_units,
     RECORD_UNITS_METAVAR,
+    save,
+    scale_list,
     split_record_units,
 )
 
 #: the library parameters that the options of `rockjax sweep` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scales",
          "tail": "--tail", "structure": "--structure", "records": "--record"}
-
-#: the files a `--record DIR` takes (by suffix, case-insensitive); others are skipped
-RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc", ".asc", ".gz",  # .asc: ESM
-                   *(f".{c}{n}" for c in ("ew", "ns", "ud") for n in ("", "1", "2")))  # K-NET
 
 
 # ------------------------------------------------------------------------------ parser
@@ -88,10 +77,11 @@ def add_parser(subparsers):
         "(or --coordinator, --num-processes, --process-id) the runs are split over several "
         "jax.distributed processes or machines and process 0 writes the outputs.",
     )
-    w.set_defaults(inputs=None)
-    _add_input_arguments(w)
-    _add_run_arguments(w)
-    _add_output_arguments(w)
+    add_input_arguments(w)
+    add_run_arguments(w)
+    add_outputs(w, "plot peak |u| and the fraction overturned against the scale",
+                out="CSV of the summaries (default ./sweep.csv)", out_default="sweep.csv",
+                json="print one JSON object and nothing else (no progress bar)")
     _distributed.add_distributed_arguments(w)
     w.set_defaults(func=run)
     return w
@@ -104,152 +94,65 @@ class _InOrder(argparse.Action):
         namespace.inputs = [*(namespace.inputs or []), (self.dest, values)]
 
 
-_tail = converter("--tail", float, lambda x: math.isfinite(x) and x >= 0, "be >= 0 and finite")
-
-
-def _add_input_arguments(w):
-    """--structure, --record, --units, --record-dt, --scales."""
-    w.add_argument(
-        "--structure",
-        action="append",
-        metavar="FILE.toml",
-        help="structure file, repeatable (default: Table 1)",
-    )
+def add_input_arguments(w, structure="structure file, repeatable (default: Table 1)",
+                        scales=None):
+    """--structure, --record, --units, --record-dt, --scales (`scales`: its help, and then
+    required, as `rockjax fragility` has it)."""
+    w.set_defaults(inputs=None)
+    w.add_argument("--structure", action="append", metavar="FILE.toml", help=structure)
     add_plausibility_argument(w)
     w.add_argument(
-        "--record",
-        action=_InOrder,
-        required=True,
-        metavar="FILE[:UNITS]|DIR",
+        "--record", action=_InOrder, required=True, metavar="FILE[:UNITS]|DIR",
         help="ground-motion record file, repeatable (at least one); FILE:g, FILE:m/s2, "
         "FILE:cm/s2 or FILE:gal states its units; a folder takes every record file in it "
-        "(.AT2, .dat, .txt, .csv, .acc, ESM .ASC, K-NET .EW/.NS/.UD[12], .gz), sorted by name",
-    )
+        "(.AT2, .dat, .txt, .csv, .acc, ESM .ASC, K-NET .EW/.NS/.UD[12], .gz), sorted by "
+        "name")
     w.add_argument(
-        "--units",
-        action=_InOrder,
-        type=record_units,
-        metavar=RECORD_UNITS_METAVAR,
+        "--units", action=_InOrder, type=record_units, metavar=RECORD_UNITS_METAVAR,
         help="units of the --record just before it (before any --record: of every record "
         "that states no units of its own). A file that states its units (AT2 'UNITS OF "
         "G', a column title 'Accel[g]') is read in them; units given that contradict them "
-        "are refused",
-    )
-    w.add_argument(
-        "--record-dt",
-        type=_positive_float("--record-dt"),
-        metavar="DT",
-        help="sample step [s] of the one-column records (the others state their own)",
-    )
-    w.add_argument(
-        "--scales",
-        type=_scales,
-        default=[1.0],
-        metavar="LIST|START:STOP:N",
-        help='scale factors: a comma list such as "0.5,1,1.5" or a range '
-        '"START:STOP:N" of N evenly spaced values, ends included (default 1)',
-    )
+        "are refused")
+    w.add_argument("--record-dt", type=positive_float("--record-dt"), metavar="DT",
+                   help="sample step [s] of the one-column records (the others state their own)")
+    w.add_argument("--scales", type=scale_list, default=None if scales else [1.0],
+                   required=bool(scales), metavar="LIST|START:STOP:N",
+                   help=scales or 'scale factors: a comma list such as "0.5,1,1.5" or a range '
+                   '"START:STOP:N" of N evenly spaced values, ends included (default 1)')
 
 
-def _add_run_arguments(w):
+def add_run_arguments(w):
     """--tail, --t1, --model, --method, --substeps, --r, --impact."""
     w.add_argument(
-        "--tail",
-        type=_tail,
-        default=DEFAULT_TAIL,
-        metavar="S",
+        "--tail", default=DEFAULT_TAIL, metavar="S",
+        type=converter("--tail", float, lambda x: math.isfinite(x) and x >= 0,
+                       "be >= 0 and finite"),
         help=f"free vibration [s] after each record's end (default {DEFAULT_TAIL:g}); "
         "each run ends at its own record's end plus S, so shorter records are never "
-        "padded with zeros",
-    )
+        "padded with zeros")
+    w.add_argument("--t1", type=positive_float("--t1"), metavar="T",
+                   help="stop every run at T [s] at the latest (default: no cap)")
+    add_model_arguments(w, "model of the fidelity ladder (default simplified; two_spring_2dof: "
+                        "the 2-DOF rigid body on its springs, batched like the others)")
+    w.add_argument("--method", choices=["rk4", "dopri5", "diffrax"], default="rk4",
+                   help="integrator (default rk4, the fast fixed-step path)")
     w.add_argument(
-        "--t1",
-        type=_positive_float("--t1"),
-        metavar="T",
-        help="stop every run at T [s] at the latest (default: no cap)",
-    )
-    add_model_arguments(
-        w,
-        "model of the fidelity ladder (default simplified; two_spring_2dof: the 2-DOF "
-        "rigid body on its springs, batched like the others)",
-    )
-    w.add_argument(
-        "--method",
-        choices=["rk4", "dopri5", "diffrax"],
-        default="rk4",
-        help="integrator (default rk4, the fast fixed-step path)",
-    )
-    w.add_argument(
-        "--substeps",
-        type=_positive_int("--substeps"),
-        default=4,
-        metavar="N",
+        "--substeps", type=positive_int("--substeps"), default=4, metavar="N",
         help="RK4 steps per step of the records' common grid (default 4: peak |u| within "
         "about 2e-5 of a tight reference on El Centro scaled 0.1-2; 2 is twice as fast, "
-        "within 4e-4)",
-    )
-
-
-def _add_output_arguments(w):
-    """--out, --plot, --json."""
-    w.add_argument(
-        "--out",
-        default="sweep.csv",
-        metavar="FILE.csv",
-        help="CSV of the summaries (default ./sweep.csv)",
-    )
-    w.add_argument(
-        "--plot",
-        metavar="FILE.png",
-        help="plot peak |u| and the fraction overturned against the scale",
-    )
-    w.add_argument(
-        "--json",
-        action="store_true",
-        help="print one JSON object and nothing else (no progress bar)",
-    )
+        "within 4e-4)")
 
 
 # ------------------------------------------------------------------------------ inputs
-def _unique_labels(paths):
-    """File stems as labels; the path as given where stems collide, then a #k suffix."""
-    stems = [pathlib.Path(p).stem for p in paths]
-    labels = [str(p) if stems.count(s) > 1 else s for p, s in zip(paths, stems)]
-    out = []
-    for i, lab in enumerate(labels):
-        k = labels[:i].count(lab)
-        out.append(f"{lab}#{k + 1}" if k or labels.count(lab) > 1 else lab)
-    return out
-
-
-def _check_args(args):
-    """The checks that need no file read: plot suffix, --r, output folders."""
-    _check_png(args.plot)
-    _check_r(args.r)
-    _check_out_dir("--out", args.out)
-    _check_out_dir("--plot", args.plot)
-
-
 def _sweep_structures(paths, check_plausible=True):
     """(structures, labels) of the --structure files, or of Table 1 when there are none."""
     structures = []
     for path in paths or [None]:
         try:
-            structures.append(_load_structure(path, check_plausible))
+            structures.append(load_structure(path, check_plausible))
         except (ValueError, OSError) as e:
-            raise CLIError(f"--structure: {_first_line(e)}") from None
-    labels = ["table1"] if paths is None else _unique_labels(paths)
-    return structures, labels
-
-
-@dataclasses.dataclass
-class _Spec:
-    """One record to read: its path, the units given for it (None: the file's own, or
-    the default --units), and the --record folder it came from (None: named itself)."""
-
-    path: str
-    units: str | None = None
-    folder: str | None = None
+            raise CLIError(f"--structure: {first_line(e)}") from None
+    return structures, ["table1"] if paths is None else unique_labels(paths)
 
 
 def _record_specs(inputs):
@@ -258,60 +161,17 @@ def _record_specs(inputs):
     specs, default = [], None
     for kind, value in inputs or []:
         if kind == "record":
-            path, units = split_record_units(value)
-            specs.append(_Spec(path, units))
+            specs.append(RecordFile(*split_record_units(value)))
         elif not specs:
             if default is not None:
                 raise CLIError("--units: given twice before the first --record")
             default = value
         elif specs[-1].units is not None:
-            raise CLIError(
-                f"--units {value}: the --record before it, {specs[-1].path}, already has "
-                f"units {specs[-1].units}"
-            )
+            raise CLIError(f"--units {value}: the --record before it, {specs[-1].path}, "
+                           f"already has units {specs[-1].units}")
         else:
             specs[-1].units = value
     return specs, default
-
-
-def _folder_files(spec):
-    """(the record files of a --record folder, sorted, as specs; the names skipped)."""
-    folder = pathlib.Path(spec.path)
-    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith("."))
-    taken = [p for p in files if p.suffix.lower() in RECORD_SUFFIXES]
-    skipped = [p.name for p in files if p.suffix.lower() not in RECORD_SUFFIXES]
-    if not taken:
-        raise CLIError(
-            f"--record {spec.path}: no record files in this folder (looked for "
-            f"{', '.join(RECORD_SUFFIXES)}; found {', '.join(skipped) or 'nothing'})"
-        )
-    return [_Spec(str(p), spec.units, spec.path) for p in taken], skipped
-
-
-def _expand_folders(specs):
-    """Folders replaced by their record files; a file also named itself takes the units
-    given there. Returns (specs, {folder: names skipped})."""
-    named = {}
-    for spec in specs:
-        if not pathlib.Path(spec.path).is_dir():
-            key = pathlib.Path(spec.path).resolve()
-            if key in named:
-                raise CLIError(f"--record {spec.path}: given twice")
-            named[key] = spec
-    out, skipped, seen = [], {}, set()
-    for spec in specs:
-        if pathlib.Path(spec.path).is_dir():
-            files, skipped[spec.path] = _folder_files(spec)
-        else:
-            files = [spec]
-        for f in files:
-            key = pathlib.Path(f.path).resolve()
-            if key in seen:
-                continue
-            seen.add(key)
-            own = named.get(key)
-            out.append(f if own is None else dataclasses.replace(own, folder=f.folder))
-    return out, skipped
 
 
 def _read_records(specs, default_units, record_dt, check_plausible=True):
@@ -320,42 +180,25 @@ def _read_records(specs, default_units, record_dt, check_plausible=True):
     syntax."""
     records = []
     for spec in specs:
-        units = spec.units or default_units
         try:
             one_col = record_dt is not None and record_format(spec.path) == "one_column"
-            dt = record_dt if one_col else None
-            records.append(rockjax.read_record(spec.path, units=units, dt=dt,
+            records.append(rockjax.read_record(spec.path, units=spec.units or default_units,
+                                               dt=record_dt if one_col else None,
                                                check_plausible=check_plausible))
         except (ValueError, OSError) as e:
             hint = ""
             if spec.folder is not None and getattr(e, "param", None) == "units":
-                hint = (
-                    f" (a file of --record {spec.folder}: give its units with --record "
-                    f"{spec.path}:g or :m/s2)"
-                )
+                hint = (f" (a file of --record {spec.folder}: give its units with --record "
+                        f"{spec.path}:g or :m/s2)")
             where = "" if isinstance(e, rockjax.ParameterError) else "--record: "
             raise CLIError(f"{where}{error_text(e, FLAGS)}{hint}") from None
     return records
 
 
-def _sweep_records(args):
-    """(records, labels, {folder: files skipped}) of the --record/--units arguments; the
-    records' common time step is checked here (a one-line error when there is none)."""
-    specs, default_units = _record_specs(args.inputs)
-    specs, skipped = _expand_folders(specs)
-    records = _read_records(specs, default_units, args.record_dt, args.check_plausible)
-    labels = _unique_labels([s.path for s in specs])
-    try:
-        common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
-    except ValueError as e:
-        raise CLIError(f"--record: {_first_line(e)}") from None
-    return records, labels, skipped
-
-
 # --------------------------------------------------------------------------------- run
 @dataclasses.dataclass
-class _Sweep:
-    """A sweep's inputs and, once `_run_batches` has filled them, its results: one
+class Sweep:
+    """A sweep's inputs and, once `run_batches` has filled them, its results: one
     `rockjax.SweepResult` (records x scales) per structure."""
 
     structures: list
@@ -391,22 +234,19 @@ class _Sweep:
         return [e if self.t1 is None else min(e, self.t1) for e in ends]
 
     def record_infos(self):
-        """`record_info` of each record, with its label and end of run."""
-        infos = []
-        for lab, rec, t_end in zip(self.rec_labels, self.records, self.t_ends):
-            info = {"label": lab, **record_info(rec), "t_end_s": t_end}
-            for key in ("scale", "scaled_pga_g"):  # the scales are the sweep's
-                info.pop(key)
-            infos.append(info)
-        return infos
+        """`record_info` of each record (without the scale: the sweep's), with its label
+        and end of run."""
+        return [{"label": lab, **{k: v for k, v in record_info(rec).items()
+                                  if k not in ("scale", "scaled_pga_g")}, "t_end_s": t_end}
+                for lab, rec, t_end in zip(self.rec_labels, self.records, self.t_ends)]
 
     def status_counts(self):
         counts = [r.status_counts() for r in self.results]
         return {name: sum(c[name] for c in counts) for name in rockjax.STATUS}
 
-    def fractions_overturned(self):
+    def fractions(self):
         """Per structure label, `SweepResult.fraction_overturned` (None for NaN)."""
-        return {lab: r.to_dict()["fraction_overturned"]
+        return {lab: [None if np.isnan(x) else float(x) for x in r.fraction_overturned()]
                 for lab, r in zip(self.struct_labels, self.results)}
 
     def failed_by_scale(self):
@@ -415,25 +255,29 @@ class _Sweep:
                 for lab, r in zip(self.struct_labels, self.results)}
 
 
-def _check_run_length(sweep):
-    """A one-line error naming --tail, rather than numpy's size error, for absurd runs."""
+def read_sweep(args):
+    """The sweep's inputs, read and checked (no run yet); the records' common time step is
+    checked here (a one-line error when there is none), and the length of the runs."""
+    structures, struct_labels = _sweep_structures(args.structure, args.check_plausible)
+    specs, default_units = _record_specs(args.inputs)
+    specs, skipped = expand_folders(specs)
+    records = _read_records(specs, default_units, args.record_dt, args.check_plausible)
+    try:
+        common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
+    except ValueError as e:
+        raise CLIError(f"--record: {first_line(e)}") from None
+    sweep = Sweep(structures, struct_labels, records, unique_labels([s.path for s in specs]),
+                  np.asarray(args.scales, float), args.tail, args.t1, skipped)
     n = max(sweep.t_ends) / sweep.grid_dt
-    if not n <= _MAX_STEPS:
+    if not n <= MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error
         raise CLIError(
             f"--tail {sweep.tail:g} s makes runs of {n:.3g} steps of the records' common grid "
-            f"({sweep.grid_dt:g} s), more than {_MAX_STEPS:,}; shorten --tail or cap the runs "
-            "with --t1"
-        )
+            f"({sweep.grid_dt:g} s), more than {MAX_STEPS:,}; shorten --tail or cap the runs "
+            "with --t1")
+    return sweep
 
 
-def _fingerprint(sweep):
-    """A checksum of what was read: processes that read different files disagree on it."""
-    return fingerprint([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
-                        sweep.tail, sweep.t1],
-                       [(r.accel, float(r.dt)) for r in sweep.records] + sweep.structures)
-
-
-def _run_batches(args, sweep, cluster=None):
+def run_batches(args, sweep, cluster=None):
     """`rockjax.sweep` of each structure, its runs split over the processes of `cluster`
     (default: this one); fills sweep.results and sweep.warnings."""
     cluster = cluster or _distributed.Cluster()
@@ -456,8 +300,21 @@ def _run_batches(args, sweep, cluster=None):
     sweep.processes = cluster.count
 
 
-def _write_sweep_csv(args, sweep):
-    write_csv(args.out, sweep.results, sweep.struct_labels)
+def _load_sweep(args, cluster):
+    """`read_sweep`, and (several processes) a check that every process read the same."""
+    sweep = error = None
+    try:
+        sweep = read_sweep(args)
+    except Exception as e:  # noqa: BLE001 - raised again by agree, after the others know
+        error = e
+    fp = None
+    if cluster.active and sweep is not None:  # processes that read different files disagree
+        fp = fingerprint([sweep.struct_labels, sweep.rec_labels, sweep.scales.tolist(),
+                          sweep.tail, sweep.t1],
+                         [(r.accel, float(r.dt)) for r in sweep.records] + sweep.structures)
+    with cluster.collective():
+        cluster.agree(fp, error)
+    return sweep
 
 
 # ---------------------------------------------------------------------------- outputs
@@ -475,54 +332,42 @@ def sweep_json(args, sweep):
         "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
         "record_info": sweep.record_infos(), "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
-        "fraction_overturned": sweep.fractions_overturned(),
+        "fraction_overturned": sweep.fractions(),
         "failed_by_scale": sweep.failed_by_scale(), "warnings": sweep.warnings,
     }
 
 
-def _print_inputs(args, sweep):
+def print_inputs(args, sweep):
     """What was read and what produced the results: records, their grid, the model."""
     for folder, names in sweep.skipped.items():
-        taken = sum(
-            1 for r in sweep.records if pathlib.Path(r.source).parent == pathlib.Path(folder)
-        )
+        taken = sum(pathlib.Path(r.source).parent == pathlib.Path(folder) for r in sweep.records)
         note = f"; skipped (not record files): {', '.join(names)}" if names else ""
         print(f"folder        {folder}: {taken} record file(s) taken{note}")
     for i in sweep.record_infos():
         src = f" ({i['units_from']})" if i["units_from"] else ""
-        print(
-            f"record        {i['label']}: units {i['units_in_file']}{src}, dt {i['dt_s']:g} s, "
-            f"{i['n_points']} points, {i['duration_s']:g} s, PGA {i['pga_g']:.4g} g, "
-            f"run to {i['t_end_s']:g} s"
-        )
+        print(f"record        {i['label']}: units {i['units_in_file']}{src}, dt {i['dt_s']:g} s, "
+              f"{i['n_points']} points, {i['duration_s']:g} s, PGA {i['pga_g']:.4g} g, "
+              f"run to {i['t_end_s']:g} s")
     cap = "" if sweep.t1 is None else f", at most t1 = {sweep.t1:g} s"
-    dts = sorted({r.dt for r in sweep.records})
-    print(
-        f"grid          {sweep.grid_dt:g} s (record steps {', '.join(f'{d:g}' for d in dts)} s"
-        f", resampled exactly); each run to its record's end + tail {sweep.tail:g} s{cap}"
-    )
-    print(
-        f"model         {model_line(model_info(args))}, {args.method}"
-        + (f" ({args.substeps} substeps)" if args.method == "rk4" else "")
-    )
+    dts = ", ".join(f"{d:g}" for d in sorted({r.dt for r in sweep.records}))
+    print(f"grid          {sweep.grid_dt:g} s (record steps {dts} s, resampled exactly); "
+          f"each run to its record's end + tail {sweep.tail:g} s{cap}")
+    print(f"model         {model_line(model_info(args))}, {args.method}"
+          + (f" ({args.substeps} substeps)" if args.method == "rk4" else ""))
 
 
-def _print_report(args, sweep, counts, fractions):
-    n_runs, n_s, n_r = sweep.n_runs, len(sweep.scales), len(sweep.rec_labels)
+def _print_report(args, sweep):
+    counts, n_runs, n_s = sweep.status_counts(), sweep.n_runs, len(sweep.scales)
     n_over = counts["overturned"]
     failed = {k: v for k, v in counts.items() if rockjax.STATUS[k] not in USABLE and v}
     n_used = n_runs - sum(failed.values())
-    _print_inputs(args, sweep)
-    print(
-        f"sweep         {sweep.runs}: {len(sweep.structures)} structure(s) x {n_r} record(s) x "
-        f"{n_s} scale(s)"
-    )
+    print_inputs(args, sweep)
     procs = f", {sweep.processes} processes" if sweep.processes > 1 else ""
-    print(
-        f"time          {sweep.wall:.3g} s ({n_runs / sweep.wall:.3g} runs/s, compilation "
-        f"included{procs})"
-    )
-    print("status        " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    print(f"sweep         {sweep.runs}: {len(sweep.structures)} structure(s) x "
+          f"{len(sweep.rec_labels)} record(s) x {n_s} scale(s)\n"
+          f"time          {sweep.wall:.3g} s ({n_runs / sweep.wall:.3g} runs/s, compilation "
+          f"included{procs})\nstatus        "
+          + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
     share = f"{n_over / n_used:.1%}" if n_used else "-"
     if failed:
         left = ", ".join(f"{k} {v}" for k, v in failed.items())
@@ -530,91 +375,33 @@ def _print_report(args, sweep, counts, fractions):
               f"({share}); {n_runs - n_used} failed runs left out ({left})")
     else:
         print(f"overturned    {n_over} of {n_runs} ({share})")
-    _print_fraction_table(sweep.scales, sweep.struct_labels, fractions)
+    labels, fractions = sweep.struct_labels, sweep.fractions()
+    width = max(8, *(len(lab) + 2 for lab in labels))
+    head = f"{'scale':>10}" + "".join(f"{lab:>{width}}" for lab in labels)
+    print(f"fraction overturned by scale (of the runs that completed or overturned):\n{head}")
+    for i in range(n_s) if n_s <= 25 else [*range(12), None, *range(n_s - 12, n_s)]:
+        print(f"{'...':>10}" if i is None else f"{sweep.scales[i]:>10.4g}" + "".join(
+            f"{'-' if (x := fractions[lab][i]) is None else f'{x:.3f}':>{width}}"
+            for lab in labels))
     if failed:
-        _print_failed_table(sweep.scales, sweep.struct_labels, sweep.failed_by_scale())
+        by_scale = sweep.failed_by_scale()
+        print("failed runs by scale (max_impacts, solver_failure; left out of the fractions):"
+              f"\n{head}")
+        for i, scale in enumerate(sweep.scales):
+            if any(by_scale[lab][i] for lab in labels):
+                print(f"{scale:>10.4g}"
+                      + "".join(f"{by_scale[lab][i]:>{width}d}" for lab in labels))
     print(f"results written to {args.out}")
-    if args.plot:
-        print(f"plot written to {args.plot}")
-
-
-def _print_fraction_table(scales, struct_labels, fractions):
-    """Fraction overturned by scale, one column per structure (the middle elided past 25)."""
-    n_s = len(scales)
-    width = max(8, *(len(lab) + 2 for lab in struct_labels))
-    print(
-        f"fraction overturned by scale (of the runs that completed or overturned):\n"
-        f"{'scale':>10}"
-        + "".join(f"{lab:>{width}}" for lab in struct_labels)
-    )
-    shown = range(n_s) if n_s <= 25 else [*range(12), None, *range(n_s - 12, n_s)]
-    for i in shown:
-        if i is None:
-            print(f"{'...':>10}")
-            continue
-        print(
-            f"{scales[i]:>10.4g}"
-            + "".join(f"{_fraction(fractions[lab][i]):>{width}}" for lab in struct_labels)
-        )
-
-
-def _fraction(x):
-    """A fraction in the table: three decimals, '-' where every run failed."""
-    return "-" if x is None else f"{x:.3f}"
-
-
-def _print_failed_table(scales, struct_labels, failed):
-    """Failed runs by scale, one column per structure (the scales with failures only)."""
-    width = max(8, *(len(lab) + 2 for lab in struct_labels))
-    print(
-        "failed runs by scale (max_impacts, solver_failure; left out of the fractions):\n"
-        f"{'scale':>10}" + "".join(f"{lab:>{width}}" for lab in struct_labels)
-    )
-    for i, scale in enumerate(scales):
-        if any(failed[lab][i] for lab in struct_labels):
-            print(f"{scale:>10.4g}" + "".join(f"{failed[lab][i]:>{width}d}"
-                                              for lab in struct_labels))
-
-
-def _read_sweep(args):
-    """The sweep's inputs, read and checked (no run yet)."""
-    structures, struct_labels = _sweep_structures(args.structure, args.check_plausible)
-    records, rec_labels, skipped = _sweep_records(args)
-    sweep = _Sweep(
-        structures=structures,
-        struct_labels=struct_labels,
-        records=records,
-        rec_labels=rec_labels,
-        scales=np.asarray(args.scales, float),
-        tail=args.tail,
-        t1=args.t1,
-        skipped=skipped,
-    )
-    _check_run_length(sweep)
-    return sweep
-
-
-def _load_sweep(args, cluster):
-    """`_read_sweep`, and (several processes) a check that every process read the same."""
-    sweep = error = None
-    try:
-        sweep = _read_sweep(args)
-    except Exception as e:  # noqa: BLE001 - raised again by agree, after the others know
-        error = e
-    with cluster.collective():
-        cluster.agree(_fingerprint(sweep) if cluster.active and sweep is not None else None,
-                      error)
-    return sweep
 
 
 def run(args):
     """structures x scales x records through `rockjax.sweep`: CSV, plot; over several
     jax.distributed processes when asked (process 0 writes)."""
-    _check_args(args)
+    check_outputs(args)
     cluster = _distributed.start(args)
     try:
         sweep = _load_sweep(args, cluster)
-        _run_batches(args, sweep, cluster)
+        run_batches(args, sweep, cluster)
     except Exception as e:
         if not cluster.active:
             raise
@@ -622,24 +409,22 @@ def run(args):
         # (a process that returned to the interpreter's exit after a failed run has been
         # seen to hang there, under load, until killed)
         cluster.stop()
-        message = (parameter_message(e, FLAGS) if isinstance(e, rockjax.ParameterError)
-                   else _first_line(e))
-        print(f"rockjax sweep: error: {message}", file=sys.stderr, flush=True)
+        print(f"rockjax sweep: error: {error_text(e, FLAGS)}", file=sys.stderr, flush=True)
         os._exit(EXIT_USAGE)
     finally:
         cluster.stop()
     if cluster.index != 0:
         return 0
-    _write_sweep_csv(args, sweep)
-    counts, fractions = sweep.status_counts(), sweep.fractions_overturned()
+    write_csv(args.out, sweep.results, sweep.struct_labels)
     if args.plot:
         end = "its end + tail" if args.t1 is None else f"min(end + tail, {args.t1:g} s)"
-        fig = plot_sweeps(sweep.results, sweep.struct_labels, title=f"{sweep.runs}, each "
-                          f"record to {end}, {args.model} model, impact rule {args.impact}, "
-                          f"{args.method}")
-        fig.savefig(args.plot, dpi=150)
+        save(plot_sweeps(sweep.results, sweep.struct_labels, title=f"{sweep.runs}, each record "
+                         f"to {end}, {args.model} model, impact rule {args.impact}, "
+                         f"{args.method}"), args.plot)
     if args.json:
         print(json.dumps(sweep_json(args, sweep)))
         return 0
-    _print_report(args, sweep, counts, fractions)
+    _print_report(args, sweep)
+    if args.plot:
+        print(f"plot written to {args.plot}")
     return 0

@@ -440,16 +440,18 @@ MIN_PLAUSIBLE_PEAK = 1e-3
 def _check_plausible(name: str, layout, t: np.ndarray, u: np.ndarray) -> None:
     """TraceError, with a hint on the units, for a time step of seconds or a displacement
     column in mm (cm, um) that never reaches 1 mm."""
-    off = ("; pass check_plausible=False to read it as it is",
-           "; pass --no-plausibility-check to read it as it is")
+    off = "; pass {} to read it as it is"
     dt = float(np.median(np.diff(t)))
     if dt >= MAX_PLAUSIBLE_DT:
         col, unit = layout.names["t"], layout.units["t"]
         msg = (f"column {col!r}: a time step of {dt:g} s (read in {unit}, "
                f"{layout.units_from['t']}) is implausible for a decay trace; if the column "
-               f"is in milliseconds (a step of {dt * 1e-3:g} s), name it t_ms or pass ")
-        raise TraceError(f"{name}: {msg}units={{'t': 'ms'}}{off[0]}",
-                         f"{name}: {msg}--units t=ms{off[1]}")
+               f"is in milliseconds (a step of {dt * 1e-3:g} s), name it t_ms")
+        raise TraceError(f"{name}: {msg}",
+                         param="check_plausible", value=False,
+                         advice=" or pass --units t=ms" + off,
+                         python=" or pass units={'t': 'ms'}" + off.format(
+                             "check_plausible=False"))
     unit = layout.units["u"]
     peak = float(np.max(np.abs(u)))
     if unit in ("mm", "cm", "um") and peak < MIN_PLAUSIBLE_PEAK:
@@ -460,7 +462,8 @@ def _check_plausible(name: str, layout, t: np.ndarray, u: np.ndarray) -> None:
                f"({peak * 1e3:.3g} mm), implausible for a rocking decay; if the column "
                f"holds metres ({peak / size:.4g} m), ")
         fix = "correct its title (such as disp_m)"
-        raise TraceError(f"{name}: {msg}{fix}{off[0]}", f"{name}: {msg}{fix}{off[1]}")
+        raise TraceError(f"{name}: {msg}{fix}", param="check_plausible", value=False,
+                         advice=off, python=off.format("check_plausible=False"))
 
 
 def _some(items, n: int = 5) -> str:

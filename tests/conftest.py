@@ -54,6 +54,20 @@ def pytest_runtest_logfinish(nodeid, location):
             f.write(f"{os.environ.get('PYTEST_XDIST_WORKER', 'main')} {nodeid} {rss}\n")
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _free_compiled_programs():
+    """After each test module, JAX's compiled programs and traces are dropped
+    (`jax.clear_caches()`): a worker kept every program of every module it ran, and its
+    memory grew to about 5 GB (issue 24); modules rarely share a program, so little is
+    compiled again. ROCKJAX_KEEP_COMPILED=1 keeps them (to measure the difference)."""
+    yield
+    if os.environ.get("ROCKJAX_KEEP_COMPILED") != "1":
+        import gc
+
+        jax.clear_caches()
+        gc.collect()
+
+
 @pytest.fixture(autouse=True)
 def _no_process_wide_compile_cache():
     """No test leaves JAX's persistent compilation cache on in the test process itself.

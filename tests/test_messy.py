@@ -208,8 +208,14 @@ def test_trace_plausibility_override(tmp_path):
     p.write_text(messy.trace_csv("t,u", t_factor=1e-3))
     with pytest.raises(identification.TraceError) as e:
         identification.read_trace(p)
-    assert "--units t=ms" in e.value.cli_message and "--no-plausibility-check" in \
-        e.value.cli_message
+    from rockjax.cli import fit as fit_cli
+    from rockjax.cli._common import parameter_message
+
+    cli = parameter_message(e.value, fit_cli.FLAGS)
+    assert "--units t=ms" in cli and cli.endswith("pass --no-plausibility-check to read it "
+                                                  "as it is")
+    assert "units={'t': 'ms'}" in str(e.value) and "check_plausible=False" in str(e.value)
+    assert e.value.param == "check_plausible"
     tr = identification.read_trace(p, check_plausible=False)
     assert tr.dt == pytest.approx(5.0)
     assert identification.read_trace(p, units={"t": "ms"}).dt == pytest.approx(0.005)

@@ -305,7 +305,8 @@ def _argument(flag, value):
     value), CHANNEL=VALUE pairs (a mapping), else the flag and the value."""
     if isinstance(value, dict):
         return f"{flag} " + ",".join(f"{k}={v}" for k, v in value.items())
-    return flag if value is None or value is True else f"{flag} {value}"
+    # a boolean's option is a flag (--no-plausibility-check for False)
+    return flag if value is None or isinstance(value, bool) else f"{flag} {value}"
 
 
 def parameter_message(e, flags):

@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import warnings
 
-import jax.numpy as jnp
 import numpy as np
 
 from . import _joint
 from ._outliers import outlier_message
 from ._problem import Settings, setup
-from ._residuals import respond, TraceModel
+from ._residuals import observed, TraceModel
 from ._result import (
     FitResult,
     IdentifiabilityWarning,
@@ -63,6 +62,8 @@ def fit_decay(
     rtol: float = 1e-9,
     atol: float = 1e-11,
     progress=None,
+    offset=None,
+    drift: bool = False,
 ):
     r"""Fit `params` of a rocking structure to a measured free-vibration decay trace.
 
@@ -111,6 +112,16 @@ def fit_decay(
       for the 2-DOF body (0.125, 0.25, 0.5, 1.0), whose misfit over a whole trace has
       many minima in k_f (see `identification._models.default_horizons`).
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
+    - `offset`: fit the sensor's zero of each channel (`offset` [m] of the displacement,
+      `offset_uplift` [m] of the uplift when fitted) as nuisance parameters: the model as
+      the sensor reads it is $u(t) + o$ (`identification._sensor`). None (default): where
+      the trace can pin it, i.e. when it holds two cycles of motion after the release or
+      ends at rest (else not, with a note in `FitResult.notes`); True: always; False:
+      never. An unfitted offset shows in the lack-of-fit check (its sign and mean tests).
+    - `drift`: also fit a linear drift of the displacement channel, $+ d\,(t - t_{ref})$
+      [m/s] from the release time the fit starts from (default False).
+      The nuisance parameters are in `FitResult.values` and `stderr` like the others; the
+      fitted `response` is the model as the sensor reads it (offset and drift added).
     - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
       if the fit takes more than about 3 s and stderr is a terminal).
 
@@ -148,7 +159,8 @@ def fit_decay(
     """
     settings = Settings(model=model, impact=impact, contact=contact, initial=initial,
                         starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
-                        uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress)
+                        uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress,
+                        offset=offset, drift=drift)
     if isinstance(trace, (list, tuple)):
         return _joint.fit_joint(trace, structure, params, settings, optimizer)
     return fit_single(trace, structure, params, settings, optimizer)
@@ -167,7 +179,7 @@ def fit_single(trace, structure, params, settings: Settings, optimizer=None) -> 
     ident, messages = identifiability(problem, best, unc)
     for m in messages:
         warnings.warn(m, IdentifiabilityWarning, stacklevel=_WARN_LEVEL)
-    response = respond(model, jnp.asarray(best.z))
+    response = observed(model, best.z)
     msg = outlier_message(problem, np.asarray(response.u), run.keep, unc.sigma)
     if msg is not None:
         messages.append(msg)

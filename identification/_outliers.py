@@ -8,13 +8,12 @@ most `MAX_REFITS` times; `outlier_message` is the `OutlierWarning`'s text.
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 
 import rockjax
 
 from ._problem import Problem
-from ._residuals import channels, respond, TraceModel
+from ._residuals import channels, observed, TraceModel
 
 OUTLIER_SIGMAS = 6.0
 """A residual more than this many robust standard deviations from its channel's median
@@ -69,7 +68,7 @@ def check_outliers(problem: Problem, model: TraceModel, run) -> bool:
     z_now = np.asarray(run.best_params())
     last = np.asarray(run.opt_state.best_value) if run.lm else run.vals[:, -1]
     i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
-    res_now = respond(model, jnp.asarray(z_now[i_now]))
+    res_now = observed(model, z_now[i_now])
     if not (run.converged[i_now] and int(res_now.status) == rockjax.STATUS["completed"]):
         return False
     found = find_outliers(channels(problem, res_now), ~run.keep,

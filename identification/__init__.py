@@ -24,7 +24,7 @@ from ._models import (
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
 from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
-from ._problem import PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
+from ._problem import NUISANCE as NUISANCE, PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
 from ._release import detect_release as detect_release, Release as Release
 from ._result import (
     FitResult as FitResult,
@@ -33,6 +33,7 @@ from ._result import (
     OutlierWarning as OutlierWarning,
 )
 from ._synthetic import (
+    synthetic_trace as synthetic_trace,
     synthetic_trace_path as synthetic_trace_path,
     synthetic_truth as synthetic_truth,
 )

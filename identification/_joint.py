@@ -349,7 +349,8 @@ def _trace_dict(jp: _JointProblem, i: int, source: str, values: dict, se: dict, 
     e = np.asarray(response.u) - pb.u_meas
     rms = float(np.sqrt(np.mean(e**2)))
     lack = _lack.lack_of_fit(e, rms, pb.scale, pb.fit_model.describe(),
-                             _models.models_above(pb.fit_model, pb.params))
+                             _models.models_above(pb.fit_model, pb.params), t=pb.t,
+                             fitted=tuple(p for p in pb.params if p in NUISANCE))
     own = [p for p in OWN if p in pb.params]
     return {
         "source": source,

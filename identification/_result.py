@@ -49,6 +49,9 @@ class FitResult:
     - `lack_of_fit`: whether the displacement residuals are noise (`identification._lack`):
       their lag-1 autocorrelation and runs test, `fires`, the thresholds, `next_model` (up
       the ladder) and `message` (also a `LackOfFitWarning` and in `warnings` when it fires).
+    - `diagnosis` (property): when the lack-of-fit check fires, what the residuals look like
+      (`identification._diagnosis`): a dict with `cause` ("offset", "drift", "periodic"
+      or "model") and `message`; None when the residuals are noise.
     - `model`: the model fitted, in words; `notes`: default parameters left out because
       they do not act in it (r with continuous contact, say).
     """
@@ -76,6 +79,11 @@ class FitResult:
     notes: tuple = ()
     start: dict = dataclasses.field(default_factory=dict)
 
+    @property
+    def diagnosis(self) -> dict | None:
+        """What the residuals look like when they are not noise (None when they are)."""
+        return self.lack_of_fit.get("diagnosis")
+
     def summary(self) -> dict:
         """A JSON-ready dict: values, standard errors, held and starting values,
         correlation, loss, converged, the release, the lack-of-fit check, the model fitted
@@ -102,6 +110,7 @@ class FitResult:
             "outliers": [int(i) for i in self.outliers],
             "release": dict(self.release),
             "lack_of_fit": dict(self.lack_of_fit),
+            "diagnosis": self.diagnosis,
             "fitted_model": self.model,
             "notes": list(self.notes),
         }

@@ -128,4 +128,5 @@ def lack_of_fit(problem: Problem, u_fit: np.ndarray, keep: np.ndarray) -> dict:
     rms = float(np.sqrt(np.mean(e**2)))
     fm = problem.fit_model
     return _lack.lack_of_fit(e, rms, problem.scale, fm.describe(),
-                             _models.models_above(fm, problem.params))
+                             _models.models_above(fm, problem.params), t=problem.t[keep],
+                             fitted=tuple(p for p in problem.params if p in NUISANCE))

@@ -10,6 +10,7 @@ synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits sever
 of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
 """
 
+from ._anomalies import split_releases as split_releases
 from ._fit import fit_decay as fit_decay
 from ._joint import JointFitResult as JointFitResult
 from ._lack import residual_statistics as residual_statistics

@@ -17,7 +17,7 @@ import numpy as np
 
 import rockjax
 
-from . import _models, _sensor
+from . import _anomalies, _models, _sensor
 from ._models import FitModel
 from ._release import detect_release, Release
 from ._trace import DecayTrace, TraceError
@@ -293,6 +293,7 @@ def setup(trace, structure, params, settings: Settings = Settings()) -> Problem:
     trace = as_trace(trace)
     t, u_meas, up_meas, scale = _trace_arrays(trace, params, structure)
     release = detect_release(trace)
+    _anomalies.check_trace(trace, release)  # TraceError: clipped, or a second release
     fits_uplift = up_meas is not None and st.uplift_weight > 0
     nuisance, sensor_notes = _sensor.choose(params, st.offset, st.drift, fits_uplift, t,
                                             u_meas, release)

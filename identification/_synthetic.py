@@ -112,7 +112,7 @@ def synthetic_trace(*, k_f: float = 800e3, r: float = 0.85, model="simplified",
                                model=model)
         if res.status_name != "completed":
             raise RuntimeError(f"the synthetic run did not complete: {res.status_name}")
-        return np.asarray(res.u, float)
+        return np.array(res.u, float)
 
     u = run(t, u0)
     if second is not None:

@@ -28,6 +28,7 @@ from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
 from ._problem import NUISANCE as NUISANCE, PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
 from ._release import detect_release as detect_release, Release as Release
 from ._result import (
+    ConvergenceWarning as ConvergenceWarning,
     FitResult as FitResult,
     IdentifiabilityWarning as IdentifiabilityWarning,
     LackOfFitWarning as LackOfFitWarning,

@@ -31,6 +31,7 @@ from ._outliers import outlier_message
 from ._problem import Settings, setup
 from ._residuals import observed, TraceModel
 from ._result import (
+    ConvergenceWarning,
     FitResult,
     IdentifiabilityWarning,
     LackOfFitWarning,
@@ -125,12 +126,17 @@ def fit_decay(
     - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
       if the fit takes more than about 3 s and stderr is a terminal).
 
-    **Returns:** a `FitResult`. Warns `IdentifiabilityWarning` when the trace cannot pin a
-    parameter down, and `LackOfFitWarning` (a subclass) when the residuals are not noise
-    (`FitResult.lack_of_fit`: the model cannot represent the trace, the standard errors do
-    not hold; the message names the next model up the ladder); never raises for a poor fit
-    (see `converged`). Raises `TraceError` (a `ValueError`) when the trace's amplitude lies
-    beyond the structure's `u_overturn` (a trace in mm read as m, say).
+    **Returns:** a `FitResult`. Warns `ConvergenceWarning` when the fit ends unconverged
+    (`FitResult.converged` False), whatever the optimiser; warns `IdentifiabilityWarning`
+    when the trace cannot pin a parameter down, and `LackOfFitWarning` (a subclass) when
+    the residuals are not noise (`FitResult.lack_of_fit`, `FitResult.diagnosis`: what they
+    look like: an offset, a drift, a periodic component, or a model that cannot represent
+    the trace; the standard errors do not hold; for the model, the message names the next
+    model up the ladder); never raises for a poor fit (see `converged`). Raises
+    `TraceError` (a `ValueError`) when the trace's amplitude lies beyond the structure's
+    `u_overturn` (a trace in mm read as m, say), when it is clipped (a saturated sensor),
+    or when it holds a second release (`identification.split_releases`; see
+    `identification._anomalies`).
 
     **Outliers:** after a converged fit, the residuals of each channel (displacement, uplift) are
     compared with their robust spread, 1.4826 x the median absolute deviation (the noise
@@ -188,4 +194,13 @@ def fit_single(trace, structure, params, settings: Settings, optimizer=None) -> 
     if lack["fires"]:
         messages.append(lack["message"])
         warnings.warn(lack["message"], LackOfFitWarning, stacklevel=_WARN_LEVEL)
+    if not (bool(run.converged[best.index]) and np.isfinite(best.loss) and best.loss < 1e5):
+        how = ("the default Levenberg-Marquardt" if optimizer is None
+               else f"the optimiser {type(optimizer).__name__}")
+        msg = (f"the fit did not converge: {how} stopped after {run.n_iter} iterations "
+               f"(max_iter = {problem.max_iter} per horizon) at loss {best.loss:.4g} without "
+               "meeting its tolerance: the values are not a minimum and their standard "
+               "errors mean nothing; raise max_iter, or fit with the default optimiser")
+        messages.append(msg)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=_WARN_LEVEL)
     return result(problem, run, best, unc, ident, messages, response, lack)

@@ -20,6 +20,11 @@ class LackOfFitWarning(IdentifiabilityWarning):
     a local minimum), and the standard errors do not hold (`FitResult.lack_of_fit`)."""
 
 
+class ConvergenceWarning(UserWarning):
+    """The fit ended without converging (`FitResult.converged` is False): its values are
+    not a minimum, whatever the optimiser."""
+
+
 class OutlierWarning(UserWarning):
     """Samples of the trace lie far from the fit (spikes): they were left out of it."""
 

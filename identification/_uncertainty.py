@@ -73,7 +73,12 @@ def identifiability(problem: Problem, best: Best, unc: Uncertainty):
     1 % change of it (t0: for 1 ms), to compare with the noise level.
     """
     params, vals_nat, se, sigma = problem.params, unc.values, unc.se, unc.sigma
-    Ju = best.J[:problem.t.size] * problem.scale  # d u / d z [m]
+    n = problem.t.size
+    Ju = best.J[:n] * problem.scale  # d u / d z [m]
+    if "offset_uplift" in params:  # it acts on the uplift channel only: d uplift / d z [m]
+        j = params.index("offset_uplift")
+        Ju = Ju.copy()
+        Ju[:, j] = best.J[n:, j] * problem.scale / max(problem.uplift_weight, 1e-300)
     sens = {}
     for j, p in enumerate(params):
         # t0: for 1 ms; the sensor's offsets: 1 % of the amplitude (drift: per second)

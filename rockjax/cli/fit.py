@@ -161,7 +161,8 @@ def _fit_trace(trace, structure, params, *, model="simplified", impact="paper", 
         initial["c_f"] = float(c_f)
     kwargs = {} if starts is None else {"starts": starts}
     with warnings.catch_warnings(record=True) as caught:
-        shown = (identification.IdentifiabilityWarning, identification.OutlierWarning)
+        shown = (identification.IdentifiabilityWarning, identification.OutlierWarning,
+                 identification.ConvergenceWarning)
         for cls in shown:
             warnings.simplefilter("always", cls)
         fit = identification.fit_decay(
@@ -220,7 +221,10 @@ def lack_of_fit_line(lack):
     if not lack:
         return "lack of fit   not checked"
     th = lack["thresholds"]
-    verdict = ("FIRES: the model cannot represent the trace, standard errors do not hold"
+    diag = lack.get("diagnosis") or {}
+    cause = ("the model cannot represent the trace" if diag.get("cause", "model") == "model"
+             else f"the residuals look like {diag['message']}")
+    verdict = (f"FIRES: {cause}, standard errors do not hold"
                if lack["fires"] else "no (residuals consistent with noise)")
     return (f"lack of fit   {verdict}; lag-1 autocorrelation "
             f"{lack['lag1_autocorrelation']:+.3f} (limit {th['lag1_autocorrelation']:g}), "

@@ -79,11 +79,10 @@ def find_second_release(t, u, release) -> int | None:
         if np.ptp(win) >= quiet_thr:
             continue
         rest = float(np.median(win))
-        beyond = np.abs(u[s + w:] - rest) > 0.2 * amp
-        run = np.ones(max(beyond.size - PERSIST + 1, 0), bool)
-        for j in range(PERSIST):
-            run &= beyond[j:beyond.size - PERSIST + 1 + j]
-        hits = np.flatnonzero(run)
+        beyond = (np.abs(u[s + w:] - rest) > 0.2 * amp).astype(int)
+        if beyond.size < PERSIST:
+            return None
+        hits = np.flatnonzero(np.convolve(beyond, np.ones(PERSIST, int), "valid") == PERSIST)
         if not hits.size:
             return None
         j0 = s + w + int(hits[0])

@@ -29,7 +29,9 @@ def noisy():
 
 
 def _shifted(trace, offset):
-    return DecayTrace(trace.t, np.asarray(trace.u) + offset, source=f"offset {offset}")
+    """The trace with `offset` [m] added to its displacement (its uplift as it is)."""
+    return DecayTrace(trace.t, np.asarray(trace.u) + offset, trace.uplift,
+                      source=f"offset {offset}")
 
 
 def _fit(trace, **kw):
@@ -41,8 +43,9 @@ def _fit(trace, **kw):
 
 @pytest.fixture(scope="module")
 def offset_fits(noisy):
-    """The shipped noisy trace (displacement only) with offsets 0, +4 mm and -8 mm, each
-    fitted with the defaults (the offset fitted: the trace pins it): one compiled fit."""
+    """The shipped noisy trace with offsets 0, +4 mm and -8 mm on its displacement, each
+    fitted with the defaults (the offsets fitted: the trace pins them): one compiled fit,
+    the one of tests/test_fit.py's `noisy_fit` (read back from the compile cache)."""
     trace, _ = noisy
     return {off: _fit(_shifted(trace, off)) for off in (0.0, 4e-3, -8e-3)}
 
@@ -54,7 +57,8 @@ def test_offset_is_fitted_by_default_and_recovered(noisy, offset_fits):
     _, truth = noisy
     base = offset_fits[0.0][0]
     for off, (fit, caught) in offset_fits.items():
-        assert "offset" in fit.names and fit.converged
+        assert fit.names[-2:] == ("offset", "offset_uplift") and fit.converged
+        assert abs(fit.values["offset_uplift"]) < 3 * fit.stderr["offset_uplift"]
         assert abs(fit.values["offset"] - off) < 3 * fit.stderr["offset"]
         assert fit.stderr["offset"] < 1e-4  # 0.1 mm
         for p in ("k_f", "r"):
@@ -84,6 +88,7 @@ def test_an_unfitted_offset_is_flagged_by_the_sign_test():
     assert "cannot represent this trace" not in st["message"]
 
 
+@pytest.mark.slow  # a compile of its own (40 s); the statistics are tested above
 def test_an_unfitted_offset_in_a_fit_is_named(noisy):
     """offset=False on the +4 mm trace (k_f held at the truth, to keep the fit short): the
     lack-of-fit check fires, and names the offset, not the model."""
@@ -101,7 +106,8 @@ def test_an_unfitted_offset_in_a_fit_is_named(noisy):
 
 
 def test_offset_keyword_checks():
-    trace, _ = identification.synthetic_trace(duration=0.3, noise=0.0)  # half a swing
+    t = np.arange(61) / 200.0  # 0.3 s: the first half swing only
+    trace = DecayTrace(t, 0.1 * np.cos(np.pi * t / 0.6))
     pb = identification._problem.setup(trace, rockjax.mcmanus_column(), None,
                                        identification._problem.Settings())
     assert "offset" not in pb.params and "cannot pin it" in pb.notes[-1]

@@ -7,7 +7,7 @@ k_f = 800 kN/m, r = 0.85, released from u0 at rest, 8 s at 200 Hz, Gaussian nois
 with a constant offset added to the displacement; `fit_decay` with its defaults (k_f, r,
 u0, t0, and the offset, fitted since the trace pins it). Per offset, over the seeds: the
 largest error of k_f and r [%], the share of seeds whose k_f and r lie within 2 standard
-errors of the truth (and within 1), the largest error of the fitted offset [mm], how often
+errors of the truth (and within 1), the largest |error| / standard error (z), the largest error of the fitted offset [mm], how often
 the lack-of-fit check fired, and the mean fit time (the first fit compiles; excluded).
 `--unfitted`: also one fit per offset with `offset=False` (what the fit did before the
 offset was a parameter; slow: k_f can run away). Prints a markdown table.
@@ -51,9 +51,9 @@ def main(argv=None):
     print(f"SYNTHETIC traces: k_f = {K_F:g} N/m, r = {R}, u0 = {a.u0} m, 8 s at 200 Hz, "
           f"noise 0.5 mm; {a.seeds} seeds per offset; fit_decay defaults\n")
     print("| offset [mm] | max abs k_f err [%] | max abs r err [%] | k_f within 2 se (1 se) "
-          "| r within 2 se (1 se) | max abs offset err [mm] | lack of fit fired | "
-          "converged | mean fit [s] |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| r within 2 se (1 se) | max abs z k_f, r | max abs offset err [mm] | "
+          "lack of fit fired | converged | mean fit [s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for off in offsets:
         rows = []
         for seed in range(a.seeds):
@@ -69,6 +69,7 @@ def main(argv=None):
               f"{100 * np.max(np.abs(x[:, 1])):.3f} | "
               f"{np.sum(x[:, 2] <= 2)}/{n} ({np.sum(x[:, 2] <= 1)}/{n}) | "
               f"{np.sum(x[:, 3] <= 2)}/{n} ({np.sum(x[:, 3] <= 1)}/{n}) | "
+              f"{np.max(x[:, 2]):.2f}, {np.max(x[:, 3]):.2f} | "
               f"{1e3 * np.max(np.abs(x[:, 4])):.3f} | {int(x[:, 5].sum())}/{n} | "
               f"{int(x[:, 6].sum())}/{n} | {x[:, 7].mean():.2f} |")
     if a.unfitted:

@@ -8,7 +8,8 @@ with a constant offset added to the displacement; `fit_decay` with its defaults 
 u0, t0, and the offset, fitted since the trace pins it). Per offset, over the seeds: the
 largest error of k_f and r [%], the share of seeds whose k_f and r lie within 2 standard
 errors of the truth (and within 1), the largest |error| / standard error (z), the largest
-error of the fitted offset [mm], how often the lack-of-fit check fired, and the mean fit time (the first fit compiles; excluded).
+error of the fitted offset [mm], how often the lack-of-fit check fired, and the mean fit
+time (the first fit compiles; excluded).
 `--unfitted`: also one fit per offset with `offset=False` (what the fit did before the
 offset was a parameter; slow: k_f can run away). Prints a markdown table.
 """

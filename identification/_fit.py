@@ -26,7 +26,7 @@ import warnings
 
 import numpy as np
 
-from . import _joint
+from . import _auto, _joint
 from ._outliers import outlier_message
 from ._problem import Settings, setup
 from ._residuals import observed, TraceModel
@@ -87,7 +87,11 @@ def fit_decay(
     - `model`: any model of the fidelity ladder, by name (`rockjax.MODELS`: "housner",
       "simplified", "exact", "smooth", "two_spring_2dof", ...) or as an instance (e.g.
       `rockjax.TwoSpring2DOF(damping=c_f, contact="continuous")`, whose damping is then the
-      start or held value of c_f); `impact`: the SDOF impact rule (`rockjax.simulate`).
+      start or held value of c_f); or `"auto"`: every rung that applies (simplified,
+      rigid_body, two_spring_2dof with impact and with continuous contact) fitted with its
+      default parameters, the one whose residuals are noise with the lowest AIC returned,
+      its `ranking` holding the table (`identification._auto`; minutes: each rung is a
+      full fit); `impact`: the SDOF impact rule (`rockjax.simulate`).
     - `contact`: the contact law of the 2-DOF body, `"impact"` (Housner's impact at a
       landing, r) or `"continuous"` (the springs and dashpots carry it; r does not act);
       None: the model's own (`"impact"` for `"two_spring_2dof"`). Refused for models
@@ -167,6 +171,10 @@ def fit_decay(
                         starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
                         uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress,
                         offset=offset, drift=drift)
+    if isinstance(model, str) and model == "auto":
+        if isinstance(trace, (list, tuple)):
+            raise ValueError("model='auto' fits one trace: fit a list of traces with a model")
+        return _auto.fit_auto(trace, structure, params, settings, optimizer, fit_single)
     if isinstance(trace, (list, tuple)):
         return _joint.fit_joint(trace, structure, params, settings, optimizer)
     return fit_single(trace, structure, params, settings, optimizer)

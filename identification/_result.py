@@ -57,6 +57,9 @@ class FitResult:
     - `diagnosis` (property): when the lack-of-fit check fires, what the residuals look like
       (`identification._diagnosis`): a dict with `cause` ("offset", "drift", "periodic"
       or "model") and `message`; None when the residuals are noise.
+    - `ranking`: with `model="auto"`, the rungs fitted, best first (`identification._auto`:
+      model, parameters k, AIC, its difference from the best, rms, lack of fit,
+      converged, k_f, seconds); empty otherwise.
     - `model`: the model fitted, in words; `notes`: default parameters left out because
       they do not act in it (r with continuous contact, say).
     """
@@ -83,6 +86,7 @@ class FitResult:
     model: str = ""
     notes: tuple = ()
     start: dict = dataclasses.field(default_factory=dict)
+    ranking: tuple = ()
 
     @property
     def diagnosis(self) -> dict | None:
@@ -116,6 +120,7 @@ class FitResult:
             "release": dict(self.release),
             "lack_of_fit": dict(self.lack_of_fit),
             "diagnosis": self.diagnosis,
+            "ranking": [dict(r) for r in self.ranking],
             "fitted_model": self.model,
             "notes": list(self.notes),
         }

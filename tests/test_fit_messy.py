@@ -220,3 +220,27 @@ def test_the_two_segments_fitted_jointly(two_releases):
     joint = fit_decay(segs, rockjax.mcmanus_column(), progress=False)
     assert abs(joint.values["k_f"] / 800e3 - 1) < 0.02
     assert abs(joint.values["r"] / 0.7 - 1) < 0.01
+
+
+# --------------------------------------------------------------------- convergence
+
+
+def test_an_unconverged_fit_warns():
+    """max_iter = 4 stops every horizon after one chunk: converged False, and a
+    ConvergenceWarning (in `warnings` too). The shipped clean trace with the defaults: the
+    compiled fit of tests/test_fit.py's `clean_fit`."""
+    trace = identification.read_trace(
+        identification.synthetic_trace_path("synthetic_decay_clean"))
+    fit, caught = _fit(trace, max_iter=4)
+    assert not fit.converged
+    conv = [str(w.message) for w in caught if w.category is identification.ConvergenceWarning]
+    assert len(conv) == 1 and conv[0] in fit.warnings
+    assert "did not converge" in conv[0] and "raise max_iter" in conv[0]
+
+
+@pytest.mark.slow
+def test_an_unconverged_adam_fit_warns(noisy):
+    optax = pytest.importorskip("optax")
+    fit, caught = _fit(noisy[0], optimizer=optax.adam(1e-2), max_iter=8)
+    assert not fit.converged
+    assert any(w.category is identification.ConvergenceWarning for w in caught)

@@ -43,7 +43,7 @@ def test_auto_refuses_params_and_lists():
 
 @pytest.mark.slow  # fits every rung (the 2-DOF body's: minutes)
 def test_auto_on_an_sdof_trace_keeps_the_sdof():
-    trace, truth = identification.synthetic_trace(duration=4.0, rate_hz=100.0, seed=7)
+    trace, truth = identification.synthetic_trace(duration=8.0, rate_hz=100.0, seed=7)
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         fit = identification.fit_decay(trace, rockjax.mcmanus_column(), model="auto",

@@ -299,7 +299,7 @@ def test_cli_fits_the_2dof_body(continuous, tmp_path):
                    "--starts", "1", "--json")
     js = json.loads(out)
     assert rc == 0 and abs(js["values"]["k_f"] / K_F - 1) < 0.05
-    assert set(js["values"]) == {"k_f", "c_f", "u0", "t0"}
+    assert set(js["values"]) == {"k_f", "c_f", "u0", "t0", "offset"}  # + the sensor's zero
     assert js["model"]["contact"] == "continuous" and js["model"]["c_f"].startswith("fitted")
     assert js["model"]["r"] == "not used (contact continuous)"
     assert js["lack_of_fit"]["fires"] is False

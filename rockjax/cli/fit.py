@@ -28,7 +28,9 @@ from ._common import (
     model_line,
 )
 
-_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
+_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m",
+              "offset": "m", "offset_uplift": "m", "drift": "m/s"}  # + the sensor's
+_SENSOR = ("offset", "offset_uplift", "drift")
 _PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
 _CHANNELS = ("t", "u", "uplift")
@@ -191,8 +193,9 @@ def _fit_value_table(fit, truth=None):
         v, se = fit.values[p], fit.stderr[p]
         row = f"{p:<10}{v:>14.6g}{se:>14.3g}"
         if truth is not None:
-            z = (v - truth[p]) / se if se > 0 and math.isfinite(se) else float("nan")
-            row += f"{truth[p]:>14.6g}{z:>10.2f}"
+            tv = truth.get(p, 0.0) if p in _SENSOR else truth[p]  # synthetic: no offset
+            z = (v - tv) / se if se > 0 and math.isfinite(se) else float("nan")
+            row += f"{tv:>14.6g}{z:>10.2f}"
         lines.append(row + f"  {_FIT_UNITS[p]}")
     return "\n".join(lines)
 

@@ -170,7 +170,8 @@ def main(argv=None):
 
     path = identification.synthetic_trace_path(NAME)
     trace = identification.read_trace(path)
-    truth = identification.synthetic_truth(NAME)
+    truth = {**dict.fromkeys(identification.NUISANCE, 0.0),  # no sensor offset or drift
+             **identification.synthetic_truth(NAME)}
     s = rockjax.mcmanus_column()
     initial = {"k_f": 2.0 * truth["k_f"], "r": 0.7}
 

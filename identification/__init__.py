@@ -10,6 +10,7 @@ synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits sever
 of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
 """
 
+from ._anomalies import split_releases as split_releases
 from ._fit import fit_decay as fit_decay
 from ._joint import JointFitResult as JointFitResult
 from ._lack import residual_statistics as residual_statistics
@@ -24,15 +25,17 @@ from ._models import (
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
 from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
-from ._problem import PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
+from ._problem import NUISANCE as NUISANCE, PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
 from ._release import detect_release as detect_release, Release as Release
 from ._result import (
+    ConvergenceWarning as ConvergenceWarning,
     FitResult as FitResult,
     IdentifiabilityWarning as IdentifiabilityWarning,
     LackOfFitWarning as LackOfFitWarning,
     OutlierWarning as OutlierWarning,
 )
 from ._synthetic import (
+    synthetic_trace as synthetic_trace,
     synthetic_trace_path as synthetic_trace_path,
     synthetic_truth as synthetic_truth,
 )

@@ -24,14 +24,14 @@ from __future__ import annotations
 
 import warnings
 
-import jax.numpy as jnp
 import numpy as np
 
-from . import _joint
+from . import _auto, _joint
 from ._outliers import outlier_message
 from ._problem import Settings, setup
-from ._residuals import respond, TraceModel
+from ._residuals import observed, TraceModel
 from ._result import (
+    ConvergenceWarning,
     FitResult,
     IdentifiabilityWarning,
     LackOfFitWarning,
@@ -63,6 +63,8 @@ def fit_decay(
     rtol: float = 1e-9,
     atol: float = 1e-11,
     progress=None,
+    offset=None,
+    drift: bool = False,
 ):
     r"""Fit `params` of a rocking structure to a measured free-vibration decay trace.
 
@@ -85,7 +87,11 @@ def fit_decay(
     - `model`: any model of the fidelity ladder, by name (`rockjax.MODELS`: "housner",
       "simplified", "exact", "smooth", "two_spring_2dof", ...) or as an instance (e.g.
       `rockjax.TwoSpring2DOF(damping=c_f, contact="continuous")`, whose damping is then the
-      start or held value of c_f); `impact`: the SDOF impact rule (`rockjax.simulate`).
+      start or held value of c_f); or `"auto"`: every rung that applies (simplified,
+      rigid_body, two_spring_2dof with impact and with continuous contact) fitted with its
+      default parameters, the one whose residuals are noise with the lowest AIC returned,
+      its `ranking` holding the table (`identification._auto`; minutes: each rung is a
+      full fit); `impact`: the SDOF impact rule (`rockjax.simulate`).
     - `contact`: the contact law of the 2-DOF body, `"impact"` (Housner's impact at a
       landing, r) or `"continuous"` (the springs and dashpots carry it; r does not act);
       None: the model's own (`"impact"` for `"two_spring_2dof"`). Refused for models
@@ -111,15 +117,30 @@ def fit_decay(
       for the 2-DOF body (0.125, 0.25, 0.5, 1.0), whose misfit over a whole trace has
       many minima in k_f (see `identification._models.default_horizons`).
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
+    - `offset`: fit the sensor's zero of each channel (`offset` [m] of the displacement,
+      `offset_uplift` [m] of the uplift when fitted) as nuisance parameters: the model as
+      the sensor reads it is $u(t) + o$ (`identification._sensor`). None (default): where
+      the trace can pin it, i.e. when it holds two cycles of motion after the release or
+      ends at rest (else not, with a note in `FitResult.notes`); True: always; False:
+      never. An unfitted offset shows in the lack-of-fit check (its sign and mean tests).
+    - `drift`: also fit a linear drift of the displacement channel, $+ d\,(t - t_{ref})$
+      [m/s] from the release time the fit starts from (default False).
+      The nuisance parameters are in `FitResult.values` and `stderr` like the others; the
+      fitted `response` is the model as the sensor reads it (offset and drift added).
     - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
       if the fit takes more than about 3 s and stderr is a terminal).
 
-    **Returns:** a `FitResult`. Warns `IdentifiabilityWarning` when the trace cannot pin a
-    parameter down, and `LackOfFitWarning` (a subclass) when the residuals are not noise
-    (`FitResult.lack_of_fit`: the model cannot represent the trace, the standard errors do
-    not hold; the message names the next model up the ladder); never raises for a poor fit
-    (see `converged`). Raises `TraceError` (a `ValueError`) when the trace's amplitude lies
-    beyond the structure's `u_overturn` (a trace in mm read as m, say).
+    **Returns:** a `FitResult`. Warns `ConvergenceWarning` when the fit ends unconverged
+    (`FitResult.converged` False), whatever the optimiser; warns `IdentifiabilityWarning`
+    when the trace cannot pin a parameter down, and `LackOfFitWarning` (a subclass) when
+    the residuals are not noise (`FitResult.lack_of_fit`, `FitResult.diagnosis`: what they
+    look like: an offset, a drift, a periodic component, or a model that cannot represent
+    the trace; the standard errors do not hold; for the model, the message names the next
+    model up the ladder); never raises for a poor fit (see `converged`). Raises
+    `TraceError` (a `ValueError`) when the trace's amplitude lies beyond the structure's
+    `u_overturn` (a trace in mm read as m, say), when it is clipped (a saturated sensor),
+    or when it holds a second release (`identification.split_releases`; see
+    `identification._anomalies`).
 
     **Outliers:** after a converged fit, the residuals of each channel (displacement, uplift) are
     compared with their robust spread, 1.4826 x the median absolute deviation (the noise
@@ -148,7 +169,12 @@ def fit_decay(
     """
     settings = Settings(model=model, impact=impact, contact=contact, initial=initial,
                         starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
-                        uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress)
+                        uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress,
+                        offset=offset, drift=drift)
+    if isinstance(model, str) and model == "auto":
+        if isinstance(trace, (list, tuple)):
+            raise ValueError("model='auto' fits one trace: fit a list of traces with a model")
+        return _auto.fit_auto(trace, structure, params, settings, optimizer, fit_single)
     if isinstance(trace, (list, tuple)):
         return _joint.fit_joint(trace, structure, params, settings, optimizer)
     return fit_single(trace, structure, params, settings, optimizer)
@@ -167,7 +193,7 @@ def fit_single(trace, structure, params, settings: Settings, optimizer=None) -> 
     ident, messages = identifiability(problem, best, unc)
     for m in messages:
         warnings.warn(m, IdentifiabilityWarning, stacklevel=_WARN_LEVEL)
-    response = respond(model, jnp.asarray(best.z))
+    response = observed(model, best.z)
     msg = outlier_message(problem, np.asarray(response.u), run.keep, unc.sigma)
     if msg is not None:
         messages.append(msg)
@@ -176,4 +202,13 @@ def fit_single(trace, structure, params, settings: Settings, optimizer=None) -> 
     if lack["fires"]:
         messages.append(lack["message"])
         warnings.warn(lack["message"], LackOfFitWarning, stacklevel=_WARN_LEVEL)
+    if not (bool(run.converged[best.index]) and np.isfinite(best.loss) and best.loss < 1e5):
+        how = ("the default Levenberg-Marquardt" if optimizer is None
+               else f"the optimiser {type(optimizer).__name__}")
+        msg = (f"the fit did not converge: {how} stopped after {run.n_iter} iterations "
+               f"(max_iter = {problem.max_iter} per horizon) at loss {best.loss:.4g} without "
+               "meeting its tolerance: the values are not a minimum and their standard "
+               "errors mean nothing; raise max_iter, or fit with the default optimiser")
+        messages.append(msg)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=_WARN_LEVEL)
     return result(problem, run, best, unc, ident, messages, response, lack)

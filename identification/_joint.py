@@ -31,8 +31,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import _lack, _models
-from ._problem import as_trace, check_structure, PARAM_NAMES, Settings, setup, UNITS
+from . import _lack, _models, _sensor
+from ._problem import as_trace, check_structure, NUISANCE, PARAM_NAMES, Settings, setup, UNITS
 from ._residuals import compiled, response_structure, TraceModel
 from ._result import LackOfFitWarning
 from ._stages import best_start, optimizer_of, run_stages
@@ -42,6 +42,8 @@ SHARED = ("k_f", "r", "c_f")
 """The parameters a joint fit shares between the traces (of one structure)."""
 PER_TRACE = ("u0", "t0")
 """The parameters of each trace's release."""
+OWN = PER_TRACE + NUISANCE
+"""The parameters of each trace: its release, and its sensor's offsets and drift."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -180,6 +182,9 @@ class _JointProblem:
 
 def _joint_problem(traces, structure, params, settings: Settings) -> _JointProblem:
     problems = tuple(setup(tr, structure, params, settings) for tr in traces)
+    if len({pb.params for pb in problems}) > 1:  # the offset pinned in some traces only
+        settings = dataclasses.replace(settings, offset=True)
+        problems = tuple(setup(tr, structure, params, settings) for tr in traces)
     for i, pb in enumerate(problems[1:], 1):
         if pb.fits_uplift != problems[0].fits_uplift:
             has = "has" if pb.fits_uplift else "has no"
@@ -188,7 +193,7 @@ def _joint_problem(traces, structure, params, settings: Settings) -> _JointProbl
                 "same channels in every trace (drop the uplift, or set uplift_weight=0)")
     local = problems[0].params
     shared = [p for p in local if p in SHARED]
-    own = [p for p in local if p in PER_TRACE]
+    own = [p for p in local if p in OWN]
     names = shared + [f"{p}[{i}]" for i in range(len(problems)) for p in own]
     index = np.array([[names.index(p if p in SHARED else f"{p}[{i}]") for p in local]
                       for i in range(len(problems))])
@@ -272,7 +277,7 @@ def fit_joint(traces, structure, params, settings: Settings, optimizer=None) -> 
     run = run_stages(jp, model, opt, _starting_points(jp, transforms), lm=optimizer is None,
                      outliers=False)
     best = best_start(jp, model, opt, run)
-    responses = _responses(jp, model, best.z)
+    responses = _responses(jp, model, transforms, best.z)
     unc = _uncertainty(jp, transforms, best)
     return _result(jp, transforms, run, best, responses, unc,
                    [tr.source or f"trace[{i}]" for i, tr in enumerate(traces)])
@@ -291,15 +296,17 @@ def _local(jp: _JointProblem, z, i: int) -> np.ndarray:
     return np.asarray(z)[jp.index[i]]
 
 
-def _responses(jp: _JointProblem, model: _JointModel, z) -> list:
+def _responses(jp: _JointProblem, model: _JointModel, transforms, z) -> list:
     """The fitted Response of each trace, on its own samples."""
     res = _respond_all(model, jnp.asarray(z))
     out = []
     for i, pb in enumerate(jp.problems):
         r = res.member(i)
         n = pb.t.size
-        out.append(eqx.tree_at(lambda x: (x.ts, x.u, x.v, x.theta, x.uplift), r,
-                               (r.ts[:n], r.u[:n], r.v[:n], r.theta[:n], r.uplift[:n])))
+        r = eqx.tree_at(lambda x: (x.ts, x.u, x.v, x.theta, x.uplift), r,
+                        (r.ts[:n], r.u[:n], r.v[:n], r.theta[:n], r.uplift[:n]))
+        v = transforms[i].decode(_local(jp, z, i))  # as the sensor reads it
+        out.append(_sensor.observe(r, v, pb.t, pb.t_ref))
     return out
 
 
@@ -342,8 +349,9 @@ def _trace_dict(jp: _JointProblem, i: int, source: str, values: dict, se: dict, 
     e = np.asarray(response.u) - pb.u_meas
     rms = float(np.sqrt(np.mean(e**2)))
     lack = _lack.lack_of_fit(e, rms, pb.scale, pb.fit_model.describe(),
-                             _models.models_above(pb.fit_model, pb.params))
-    own = [p for p in PER_TRACE if p in pb.params]
+                             _models.models_above(pb.fit_model, pb.params), t=pb.t,
+                             fitted=tuple(p for p in pb.params if p in NUISANCE))
+    own = [p for p in OWN if p in pb.params]
     return {
         "source": source,
         "n_points": int(pb.t.size),

@@ -32,6 +32,21 @@ $10^{-4}$ of the trace amplitude). Why these thresholds:
   trace is the integrator's own error, smooth by nature: a fit that close is exact for any
   practical purpose, and is not flagged.
 
+**Biased residuals.** A constant offset of the sensor that the fit does not model leaves
+residuals of one sign nearly everywhere: one long run, which the runs test cannot see
+(1 run where $\mu = 1$ is expected when all signs are equal: z = 0). Two more statistics
+catch it: the **sign test** $z_s = (n_+ - n_-)/\sqrt{n_+ + n_-}$ (N(0, 1) for residuals
+of a median 0), and the **mean test** $z_m = \bar e\,\sqrt{n_{eff}}/s$ with $s$ the
+residuals' standard deviation about their mean and $n_{eff} = n(1-\rho_1)/(1+\rho_1)$
+(at most n) the effective number of independent samples. **The check also fires** when
+$|z_s| > 5$ or $|z_m| > 5$ (two-sided $p < 6\times10^{-7}$ for noise; with the RMS
+floor): a +4 mm offset gives $|z_s| \approx \sqrt n$. A fit with the offset fitted
+(`fit_decay(..., offset=...)`) has residuals of mean 0 by construction.
+
+When the check fires, `identification._diagnosis` says what the residuals look like (an
+offset, a drift, a periodic component, a model that cannot follow the trace), and the
+message gives that cause rather than always blaming the model.
+
 Correlated noise (a sensor's low-pass filter, drift) also fires the check: the standard
 errors do not hold then either. `tests/test_fit_models.py` checks that it stays quiet on
 correct models with white noise (an SDOF fit of an SDOF trace, the 2-DOF body on its own
@@ -50,6 +65,9 @@ RUNS_Z_MAX = -4.0
 """...and the runs test's z (too few runs of residual signs) is below this."""
 RMS_FLOOR = 1e-4
 """...and the RMS residual exceeds this fraction of the trace amplitude."""
+BIAS_Z_MAX = 5.0
+"""It also fires when the sign test's or the mean test's |z| exceeds this (RMS floor
+too): residuals biased to one side, such as an unfitted sensor offset."""
 
 
 def residual_statistics(e: np.ndarray) -> dict:
@@ -67,40 +85,69 @@ def residual_statistics(e: np.ndarray) -> dict:
     mu = 2.0 * n_pos * n_neg / m + 1.0 if m else 0.0
     var = (mu - 1.0) * (mu - 2.0) / (m - 1) if m > 1 else 0.0
     z = (runs - mu) / math.sqrt(var) if var > 0 else 0.0
+    sign_z = (n_pos - n_neg) / math.sqrt(m) if m else 0.0
+    sd = math.sqrt(den / n) if n and den > 0 else 0.0
+    n_eff = min(float(n), max(1.0, n * (1 - rho1) / (1 + rho1))) if n else 0.0
+    mean = float(np.mean(e)) if n else 0.0
+    mean_z = mean * math.sqrt(n_eff) / sd if sd > 0 else (math.inf if mean else 0.0)
     return {"n": int(n), "lag1_autocorrelation": rho1,
+            "mean": mean, "mean_z": float(mean_z), "n_positive": n_pos, "n_negative": n_neg,
+            "sign_z": float(sign_z),
             "lag1_z": rho1 * math.sqrt(n),  # in standard deviations of white noise
             "runs": runs,
             "runs_expected": float(mu), "runs_sd": math.sqrt(max(var, 0.0)), "runs_z": float(z)}
 
 
-def lack_of_fit(e: np.ndarray, rms: float, scale: float, model: str, above) -> dict:
+def lack_of_fit(e: np.ndarray, rms: float, scale: float, model: str, above, t=None,
+                fitted=()) -> dict:
     """The `FitResult.lack_of_fit` dict: the statistics of the displacement residuals `e`
-    [m] (kept samples, time order), `fires`, the thresholds, `next_model` (the first of
-    `above`, the models up the ladder in words, nearest first; None at the top), and
+    [m] (model - trace; kept samples, time order, at times `t` [s]), `fires`, the
+    thresholds, `next_model` (the first of `above`, the models up the ladder in words,
+    nearest first; None at the top), `diagnosis` (`identification._diagnosis.diagnose`:
+    the cause named, when it fires; `fitted`, the sensor's terms the fit has) and
     `message` (None when the check does not fire)."""
     above = list(above or [])
     next_model = above[0] if above else None
     out = residual_statistics(e)
     out["rms_over_amplitude"] = float(rms / scale) if scale > 0 else 0.0
     out["thresholds"] = {"lag1_autocorrelation": RHO_MAX, "runs_z": RUNS_Z_MAX,
-                         "rms_over_amplitude": RMS_FLOOR}
-    out["fires"] = bool(out["lag1_autocorrelation"] > RHO_MAX and out["runs_z"] < RUNS_Z_MAX
-                        and out["rms_over_amplitude"] > RMS_FLOOR)
+                         "rms_over_amplitude": RMS_FLOOR, "sign_z": BIAS_Z_MAX,
+                         "mean_z": BIAS_Z_MAX}
+    above_floor = out["rms_over_amplitude"] > RMS_FLOOR
+    out["correlated"] = bool(out["lag1_autocorrelation"] > RHO_MAX
+                             and out["runs_z"] < RUNS_Z_MAX and above_floor)
+    out["biased"] = bool((abs(out["sign_z"]) > BIAS_Z_MAX or abs(out["mean_z"]) > BIAS_Z_MAX)
+                         and above_floor)
+    out["fires"] = out["correlated"] or out["biased"]
     out["next_model"] = next_model
-    out["message"] = _message(out, rms, model, above) if out["fires"] else None
+    diag = None
+    if out["fires"]:
+        from ._diagnosis import diagnose
+
+        tt = np.arange(e.size, dtype=float) if t is None else np.asarray(t, float)
+        diag = diagnose(np.asarray(e, float), tt, model, fitted)
+    out["diagnosis"] = diag
+    out["message"] = _message(out, rms, model, above, diag) if out["fires"] else None
     return out
 
 
-def _message(st: dict, rms: float, model: str, above: list) -> str:
+def _message(st: dict, rms: float, model: str, above: list, diag) -> str:
+    stats = (f"lag-1 autocorrelation {st['lag1_autocorrelation']:.3f} (limit {RHO_MAX:g}); "
+             f"{st['runs']} runs of residual signs where independent noise gives "
+             f"{st['runs_expected']:.0f} +- {st['runs_sd']:.0f}, z = {st['runs_z']:.1f}; "
+             f"signs {st['n_positive']} + / {st['n_negative']} -, z = {st['sign_z']:.1f}; "
+             f"mean z = {st['mean_z']:.1f} (limits +-{BIAS_Z_MAX:g}); rms residual "
+             f"{rms:.3g} m")
+    head = f"lack of fit: the residuals are not noise ({stats})"
+    if diag is not None and diag["cause"] != "model":
+        return (f"{head}: they look like {diag['message']}; the standard errors do not "
+                "hold until it is removed")
     then = "".join(f", then {m}" for m in above[1:])
     where = (f"the next model up the ladder is {above[0]}{then}" if above else
              "this is the top of rockjax's ladder: check the trace (filtered or coloured "
              "sensor noise, drift) and the structure")
     return (
-        f"lack of fit: the residuals are not noise (lag-1 autocorrelation "
-        f"{st['lag1_autocorrelation']:.3f} > {RHO_MAX:g}; {st['runs']} runs of residual signs "
-        f"where independent noise gives {st['runs_expected']:.0f} +- {st['runs_sd']:.0f}, "
-        f"z = {st['runs_z']:.1f}; rms residual {rms:.3g} m): the {model} model cannot "
+        f"{head}: the {model} model cannot "
         "represent this trace (or the fit stopped in a local minimum: try more starts), and "
         f"the standard errors do not hold; {where}"
     )

@@ -4,23 +4,43 @@ After a converged fit, the residuals of each channel (displacement, uplift) are 
 with their robust spread (`find_outliers`); the samples far outside it are left out and
 the whole trace is fitted again (`check_outliers`, called by `_stages.run_stages`), at
 most `MAX_REFITS` times; `outlier_message` is the `OutlierWarning`'s text.
+
+Gross spikes are left out from the start (`gross_spikes`): a sample further than
+max(`GROSS_SIGMAS` sigma, 5 % of the amplitude) from the median of its five neighbours (a
+decay trace is smooth on that scale). A spike five times the amplitude would otherwise
+pull the first horizons of the fit into another minimum before the check after the fit
+could find it.
 """
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 
 import rockjax
 
 from ._problem import Problem
-from ._residuals import channels, respond, TraceModel
+from ._residuals import channels, observed, TraceModel
 
 OUTLIER_SIGMAS = 6.0
 """A residual more than this many robust standard deviations from its channel's median
 (and above `_OUTLIER_FLOOR` of the trace amplitude) marks an outlier."""
 _OUTLIER_FLOOR = 1e-6
 MAX_REFITS = 3
+GROSS_SIGMAS = 30.0
+
+
+def gross_spikes(problem: Problem) -> np.ndarray:
+    """Samples (boolean) whose displacement or uplift lies further than
+    max(GROSS_SIGMAS noise sigma, 5 % of the amplitude) from the 5-point running median."""
+    out = np.zeros(problem.t.size, bool)
+    sigma = float(problem.release.sigma)
+    for x in (problem.u_meas, problem.up_meas if problem.fits_uplift else None):
+        if x is None or x.size < 5:
+            continue
+        pad = np.pad(x, 2, mode="edge")
+        med = np.median(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
+        out |= np.abs(x - med) > max(GROSS_SIGMAS * sigma, 0.05 * problem.scale)
+    return out
 MAX_OUTLIER_FRACTION = 0.05
 
 
@@ -69,7 +89,7 @@ def check_outliers(problem: Problem, model: TraceModel, run) -> bool:
     z_now = np.asarray(run.best_params())
     last = np.asarray(run.opt_state.best_value) if run.lm else run.vals[:, -1]
     i_now = int(np.argmin(np.where(np.isfinite(last), last, np.inf)))
-    res_now = respond(model, jnp.asarray(z_now[i_now]))
+    res_now = observed(model, z_now[i_now])
     if not (run.converged[i_now] and int(res_now.status) == rockjax.STATUS["completed"]):
         return False
     found = find_outliers(channels(problem, res_now), ~run.keep,

@@ -17,7 +17,7 @@ import numpy as np
 
 import rockjax
 
-from . import _models
+from . import _anomalies, _models, _sensor
 from ._models import FitModel
 from ._release import detect_release, Release
 from ._trace import DecayTrace, TraceError
@@ -25,8 +25,13 @@ from ._trace import DecayTrace, TraceError
 PARAM_NAMES = ("k_f", "r", "u0", "t0", "c_f")
 """The parameters `fit_decay` can fit (`DEFAULT_PARAMS`, less those that do not act in the
 model, are fitted by default; see `identification.default_params`)."""
-UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
-"""The (SI) unit of each parameter."""
+UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m", **_sensor.UNITS}
+"""The (SI) unit of each parameter (and of the nuisance parameters `NUISANCE`)."""
+NUISANCE = _sensor.NUISANCE
+"""The nuisance parameters of the sensor: `offset` (the zero of the displacement channel
+[m]), `offset_uplift` (of the uplift channel [m]) and `drift` [m/s]
+(`identification._sensor`)."""
+ALL_NAMES = PARAM_NAMES + NUISANCE
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,6 +50,8 @@ class Settings:
     rtol: float = 1e-9
     atol: float = 1e-11
     progress: object = None
+    offset: object = None
+    drift: bool = False
 
 
 def k_min_of(structure) -> float:
@@ -122,10 +129,10 @@ def _check_params(params, fm: FitModel) -> tuple:
             f"got the string {params!r}"
         )
     params = tuple(params)
-    bad = [p for p in params if p not in PARAM_NAMES]
+    bad = [p for p in params if p not in ALL_NAMES]
     if bad or not params or len(set(params)) != len(params):
-        raise ValueError(f"params must be distinct names from {PARAM_NAMES}, got {params}")
-    _models.refuse_inactive(fm, params)
+        raise ValueError(f"params must be distinct names from {ALL_NAMES}, got {params}")
+    _models.refuse_inactive(fm, tuple(p for p in params if p not in NUISANCE))
     return params
 
 
@@ -209,13 +216,14 @@ def _starting_values(structure, release: Release, initial, fm: FitModel, params:
         "r": float(structure.restitution),
         "u0": float(release.level),
         "t0": float(release.time),
+        **dict.fromkeys(NUISANCE, 0.0),
     }
     if initial is not None and not isinstance(initial, dict):
         raise ValueError(
             f"initial must be a dict of starting values such as {{'k_f': 5e5}}, got {initial!r}"
         )
     if initial:
-        unknown = set(initial) - set(PARAM_NAMES)
+        unknown = set(initial) - set(ALL_NAMES)
         if unknown:
             raise ValueError(f"initial has unknown parameter(s) {sorted(unknown)}")
         for k, v in initial.items():
@@ -284,6 +292,12 @@ def setup(trace, structure, params, settings: Settings = Settings()) -> Problem:
     trace = as_trace(trace)
     t, u_meas, up_meas, scale = _trace_arrays(trace, params, structure)
     release = detect_release(trace)
+    _anomalies.check_trace(trace, release)  # TraceError: clipped, or a second release
+    fits_uplift = up_meas is not None and st.uplift_weight > 0
+    nuisance, sensor_notes = _sensor.choose(params, st.offset, st.drift, fits_uplift, t,
+                                            u_meas, release)
+    params = tuple(p for p in params if p not in NUISANCE) + nuisance
+    notes = notes + tuple(sensor_notes)
     values0, k_min = _starting_values(structure, release, st.initial, fm, params)
     return Problem(
         structure=structure, params=params, fit_model=fm, impact=st.impact,

@@ -31,7 +31,7 @@ import numpy as np
 
 import rockjax
 
-from . import _aot, _transforms
+from . import _aot, _sensor, _transforms
 from ._problem import Problem
 
 
@@ -109,23 +109,59 @@ class TraceModel(eqx.Module):
             impact=self.impact, rtol=self.rtol, atol=self.atol, adjoint="forward",
         )
 
-    def residuals(self, z, mask):
-        """Masked residuals (displacement, then weighted uplift) in units of `scale`."""
+    def _sensor(self, v):
+        """The sensor's terms (`identification._sensor`) of the displacement channel (per
+        sample) and of the uplift channel [m]."""
+        return v["offset"] + v["drift"] * (self.t - self.t_ref), v["offset_uplift"]
+
+    def _residuals_bad(self, z, mask):
         # the simulation ends at the last sample in the fit (a horizon, padding)
+        v = self.decode(z)
         res = self.respond(z, jnp.max(jnp.where(mask > 0, self.t, self.t[0])))
-        parts = [mask * (res.u - self.u) / self.scale]
+        s_u, s_up = self._sensor(v)
+        parts = [mask * (res.u + s_u - self.u) / self.scale]
         if self.up is not None:
-            parts.append(mask * self.uplift_weight * (res.uplift - self.up) / self.scale)
+            parts.append(mask * self.uplift_weight * (res.uplift + s_up - self.up)
+                         / self.scale)
         r = jnp.concatenate(parts)
         # a failed or overturned run is a bad point, not a crash: large finite residuals
         bad = (res.status != rockjax.STATUS["completed"]) | ~jnp.all(jnp.isfinite(r))
-        return jnp.where(bad, 1e3, r)
+        return jnp.where(bad, 1e3, r), bad
+
+    def residuals(self, z, mask):
+        """Masked residuals (displacement, then weighted uplift) in units of `scale`: the
+        model as the sensor reads it (its offsets and drift added) less the trace."""
+        return self._residuals_bad(z, mask)[0]
 
     def res_jac(self, z, mask):
-        """The residuals and their Jacobian d r / d z (forward mode; one trace of the
-        model: the residuals are the primal of the Jacobian's pushforward)."""
-        J, r = jax.jacfwd(lambda x: (self.residuals(x, mask),) * 2, has_aux=True)(z)
-        return r, J
+        """The residuals and their Jacobian d r / d z (forward mode through the simulation
+        for the model's parameters; written out for the sensor's, which are linear)."""
+        phys = [i for i, p in enumerate(self.params) if p not in _transforms.LINEAR]
+        if len(phys) == len(self.params):  # one trace of the model: r is J's primal
+            J, r = jax.jacfwd(lambda x: (self.residuals(x, mask),) * 2, has_aux=True)(z)
+            return r, J
+
+        def part(zp):
+            r, bad = self._residuals_bad(z.at[jnp.asarray(phys)].set(zp), mask)
+            return r, (r, bad)
+
+        J_p, (r, bad) = jax.jacfwd(part, has_aux=True)(z[jnp.asarray(phys)])
+        n = self.t.shape[0]
+        zero = jnp.zeros(n)
+        w = self.uplift_weight
+        cols = {
+            "offset": [mask] + ([zero] if self.up is not None else []),
+            "drift": [mask * (self.t - self.t_ref)] + ([zero] if self.up is not None else []),
+            "offset_uplift": [zero, mask * w],
+        }
+        out, k = [], 0
+        for p in self.params:
+            if p in _transforms.LINEAR:
+                out.append(jnp.where(bad, 0.0, jnp.concatenate(cols[p])))
+            else:
+                out.append(J_p[:, k])
+                k += 1
+        return r, jnp.stack(out, axis=1)
 
 
 def _model_instance(pb: Problem):
@@ -186,6 +222,15 @@ def response_structure():
 def respond(model: TraceModel, z):
     """`model.respond(z)`, compiled."""
     return model.respond(z)
+
+
+def observed(model: TraceModel, z):
+    """The fitted response at z as the sensor reads it (`_sensor.observe`: u with its
+    offset and drift, uplift with its offset), numpy u and uplift."""
+    z = jnp.asarray(z)
+    v = model.decode(z)
+    return _sensor.observe(respond(model, z), {p: float(v[p]) for p in _sensor.NUISANCE},
+                           model.t, float(model.t_ref))
 
 
 def channels(pb: Problem, response) -> list:

@@ -20,6 +20,11 @@ class LackOfFitWarning(IdentifiabilityWarning):
     a local minimum), and the standard errors do not hold (`FitResult.lack_of_fit`)."""
 
 
+class ConvergenceWarning(UserWarning):
+    """The fit ended without converging (`FitResult.converged` is False): its values are
+    not a minimum, whatever the optimiser."""
+
+
 class OutlierWarning(UserWarning):
     """Samples of the trace lie far from the fit (spikes): they were left out of it."""
 
@@ -49,6 +54,12 @@ class FitResult:
     - `lack_of_fit`: whether the displacement residuals are noise (`identification._lack`):
       their lag-1 autocorrelation and runs test, `fires`, the thresholds, `next_model` (up
       the ladder) and `message` (also a `LackOfFitWarning` and in `warnings` when it fires).
+    - `diagnosis` (property): when the lack-of-fit check fires, what the residuals look like
+      (`identification._diagnosis`): a dict with `cause` ("offset", "drift", "periodic"
+      or "model") and `message`; None when the residuals are noise.
+    - `ranking`: with `model="auto"`, the rungs fitted, best first (`identification._auto`:
+      model, parameters k, AIC, its difference from the best, rms, lack of fit,
+      converged, k_f, seconds); empty otherwise.
     - `model`: the model fitted, in words; `notes`: default parameters left out because
       they do not act in it (r with continuous contact, say).
     """
@@ -75,6 +86,12 @@ class FitResult:
     model: str = ""
     notes: tuple = ()
     start: dict = dataclasses.field(default_factory=dict)
+    ranking: tuple = ()
+
+    @property
+    def diagnosis(self) -> dict | None:
+        """What the residuals look like when they are not noise (None when they are)."""
+        return self.lack_of_fit.get("diagnosis")
 
     def summary(self) -> dict:
         """A JSON-ready dict: values, standard errors, held and starting values,
@@ -102,6 +119,8 @@ class FitResult:
             "outliers": [int(i) for i in self.outliers],
             "release": dict(self.release),
             "lack_of_fit": dict(self.lack_of_fit),
+            "diagnosis": self.diagnosis,
+            "ranking": [dict(r) for r in self.ranking],
             "fitted_model": self.model,
             "notes": list(self.notes),
         }

@@ -27,9 +27,10 @@ import optimistix as optx
 
 from . import _aot
 from ._optim import levenberg_marquardt
-from ._outliers import check_outliers
+from ._outliers import check_outliers, gross_spikes
 from ._problem import Problem
 from ._residuals import compiled, TraceModel
+from ._transforms import LINEAR
 
 CHUNK = 4
 """Optimiser steps per compiled call (one `jax.lax.scan`) between convergence checks."""
@@ -183,7 +184,12 @@ def run_horizon(problem: Problem, model: TraceModel, opt, run: Run, stage: int, 
     # (continuous contact) the first bounces on the springs pin k_f: it is free throughout.
     freeze_kf = (stage == 0 and len(horizons) > 1 and "k_f" in params and len(params) > 1
                  and "r" in problem.fit_model.acting)
-    free = jnp.asarray([0.0 if (p == "k_f" and freeze_kf) else 1.0 for p in params])
+    # The sensor's offsets and drift are held (at their start, 0) on the first horizon too:
+    # free there, they trade with the phase and the decay while k_f is held, and a wrong
+    # start (spikes) can end in another minimum. They are freed with k_f.
+    first = stage == 0 and len(horizons) > 1
+    free = jnp.asarray([0.0 if ((p == "k_f" and freeze_kf) or (p in LINEAR and first))
+                        else 1.0 for p in params])
     if is_solver(opt):
         _solve_horizon(problem, model, opt, run, frac, mask, free, progress)
         return
@@ -252,7 +258,10 @@ def run_stages(problem: Problem, model: TraceModel, opt, z_start, lm: bool,
     trace without its outliers (if any)."""
     z = jnp.asarray(z_start)
     state = None if is_solver(opt) else init_states(opt, z)
-    run = Run(z=z, opt_state=state, lm=lm, keep=problem.samples(),
+    keep = problem.samples()
+    if outliers:  # gross spikes are left out from the start (`_outliers.gross_spikes`)
+        keep = keep & ~gross_spikes(problem)
+    run = Run(z=z, opt_state=state, lm=lm, keep=keep,
               converged=np.zeros(problem.starts, bool))
     progress = Progress(problem.progress, problem.max_iter * len(problem.horizons))
     # Growing horizon: fit the first quarter of the trace, then half, then all of it. Early

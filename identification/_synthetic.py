@@ -1,5 +1,7 @@
 """The SYNTHETIC decay traces shipped with the package (``data/``): simulations with known
-parameters, made by ``data/make_synthetic_traces.py``, not measurements."""
+parameters, made by ``data/make_synthetic_traces.py``, not measurements; and
+`synthetic_trace`, which makes one with a lab trace's faults (offset, drift, hum,
+clipping, a second release)."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ import json
 
 from ._trace import SYNTHETIC_TRACES
 
-__all__ = ["synthetic_trace_path", "synthetic_truth"]
+__all__ = ["synthetic_trace", "synthetic_trace_path", "synthetic_truth"]
 
 
 def synthetic_trace_path(name: str):
@@ -67,3 +69,65 @@ def _packaged(name: str, suffix: str):
             "run `python data/make_synthetic_traces.py`"
         )
     return res
+
+
+def synthetic_trace(*, k_f: float = 800e3, r: float = 0.85, model="simplified",
+                    u0: float = 0.1, rate_hz: float = 200.0, duration: float = 8.0,
+                    noise: float = 5e-4, seed: int | None = 0, offset: float = 0.0,
+                    drift: float = 0.0, hum: tuple | None = None, clip: float | None = None,
+                    second: tuple | None = None, structure=None):
+    r"""A SYNTHETIC decay trace (a rockjax simulation, not a measurement) with the faults a
+    lab trace can have, and its truth.
+
+    The structure (default: the McManus column of Table 1 with `k_f` [N/m]) is released
+    from rest at `u0` [m] at t = 0 and rocks with restitution `r` under `model`, sampled at
+    `rate_hz` [Hz] for `duration` [s]; the sensor then reads
+    $u(t) + o + d\,t + A\sin(2\pi f t) + \varepsilon$, clipped to $\pm$`clip`:
+
+    - `noise` [m]: std of the Gaussian noise $\varepsilon$ (numpy `default_rng(seed)`);
+    - `offset` $o$ [m], `drift` $d$ [m/s]: the sensor's zero and drift;
+    - `hum`: `(A [m], f [Hz])`, a steady periodic component (50 Hz mains hum, say);
+    - `clip` [m]: the sensor saturates at $\pm$clip (the reading is clipped there);
+    - `second`: `(t_2 [s], u_2 [m])`: the structure is set to u_2 at t_2 - 0.2 s, held, and
+      released again at t_2 (the first decay should be over by then).
+
+    Returns `(DecayTrace, truth)`: truth holds every argument (and `source`), in SI units.
+
+    ```python
+    trace, truth = identification.synthetic_trace(offset=4e-3, duration=2.0, seed=1)
+    ```
+    """
+    import numpy as np
+
+    import rockjax
+
+    from ._trace import DecayTrace
+
+    base = rockjax.mcmanus_column() if structure is None else structure
+    s = base.replace(k_f=k_f)
+    t = np.arange(int(round(duration * rate_hz)) + 1) / rate_hz
+
+    def run(ts, start):
+        res = rockjax.simulate(s, rockjax.FreeVibration(start), float(ts[-1]), ts=ts, r=r,
+                               model=model)
+        if res.status_name != "completed":
+            raise RuntimeError(f"the synthetic run did not complete: {res.status_name}")
+        return np.array(res.u, float)
+
+    u = run(t, u0)
+    if second is not None:
+        t2, u2 = float(second[0]), float(second[1])
+        after = t >= t2
+        u[(t >= t2 - 0.2) & ~after] = u2
+        u[after] = run(t[after] - t[after][0], u2)
+    rng = np.random.default_rng(seed)
+    u = u + offset + drift * t + (rng.normal(0.0, noise, t.size) if noise else 0.0)
+    if hum is not None:
+        u = u + hum[0] * np.sin(2 * np.pi * hum[1] * t)
+    if clip is not None:
+        u = np.clip(u, -clip, clip)
+    truth = {"synthetic": True, "k_f": k_f, "r": r, "model": str(model), "u0": u0, "t0": 0.0,
+             "rate_hz": rate_hz, "duration_s": duration, "noise_std_u": noise, "seed": seed,
+             "offset": offset, "drift": drift, "hum": hum, "clip": clip, "second": second}
+    src = f"SYNTHETIC decay (k_f={k_f:g}, r={r:g}, offset={offset:g}, seed={seed})"
+    return DecayTrace(t, u, source=src), truth

@@ -1,8 +1,10 @@
 r"""Natural parameters <-> the optimiser's unconstrained coordinates z.
 
 $$z = \big(\log(k_f - k_{f,min}),\ \operatorname{logit} r,\ u_0/u_{s},\
-(t_0 - t_{ref})/10\,\mathrm{ms},\ \log c_f\big),$$
+(t_0 - t_{ref})/10\,\mathrm{ms},\ \log c_f,\ o/u_s,\ o_{up}/u_s,\ d/(u_s/\mathrm{s})\big),$$
 
+($o$, $o_{up}$: the sensor zeros of the displacement and uplift channels, $d$ the drift
+of the displacement channel [m/s]: the nuisance parameters, linear in the residuals)
 where $k_{f,min} = W H_c / (2B^2)$ is the stability limit (Eq. 15), $u_s$ the trace
 amplitude and $t_{ref}$ the starting value of $t_0$. For the models whose k_f is bounded
 (`identification._models.k_f_cap`), $\log(k_f - k_{f,min})$ is bounded smoothly below
@@ -23,6 +25,9 @@ import numpy as np
 from . import _models
 
 T_SCALE = 0.01  # s, unit of t0 in the unconstrained coordinates
+LINEAR = ("offset", "offset_uplift", "drift")
+"""The nuisance parameters (sensor zeros, drift): linear in the residuals, z = value / u_s
+(drift per second)."""
 
 
 def k_f_of_z(z, span):
@@ -45,6 +50,8 @@ def decode(z, params: tuple, values0: dict, k_min, scale, t_ref, k_span) -> dict
             out["u0"] = zi * scale
         elif name == "c_f":
             out["c_f"] = jnp.exp(zi)
+        elif name in LINEAR:
+            out[name] = zi * scale
         else:
             out["t0"] = t_ref + zi * T_SCALE
     return out
@@ -78,6 +85,7 @@ class Transform:
             "u0": v["u0"] / self.scale,
             "t0": (v["t0"] - self.t_ref) / T_SCALE,
             "c_f": math.log(v["c_f"]) if v["c_f"] > 0 else -math.inf,  # fitted: > 0
+            **{p: v[p] / self.scale for p in LINEAR},
         }
 
     def decode(self, z) -> dict:
@@ -98,6 +106,8 @@ class Transform:
                 out["u0"] = zi * self.scale
             elif p == "c_f":
                 out["c_f"] = math.exp(zi)
+            elif p in LINEAR:
+                out[p] = zi * self.scale
             else:
                 out["t0"] = self.t_ref + zi * T_SCALE
         return out
@@ -116,7 +126,7 @@ class Transform:
             elif p == "r":
                 s_ = 1.0 / (1.0 + math.exp(-zi))
                 out.append(s_ * (1 - s_))
-            elif p == "u0":
+            elif p == "u0" or p in LINEAR:
                 out.append(self.scale)
             else:
                 out.append(T_SCALE)

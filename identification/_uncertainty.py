@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from . import _lack, _models
-from ._problem import Problem
+from ._problem import NUISANCE, Problem, UNITS
 from ._stages import Best
 from ._transforms import Transform
 
@@ -73,15 +73,23 @@ def identifiability(problem: Problem, best: Best, unc: Uncertainty):
     1 % change of it (t0: for 1 ms), to compare with the noise level.
     """
     params, vals_nat, se, sigma = problem.params, unc.values, unc.se, unc.sigma
-    Ju = best.J[:problem.t.size] * problem.scale  # d u / d z [m]
+    n = problem.t.size
+    Ju = best.J[:n] * problem.scale  # d u / d z [m]
+    if "offset_uplift" in params:  # it acts on the uplift channel only: d uplift / d z [m]
+        j = params.index("offset_uplift")
+        Ju = Ju.copy()
+        Ju[:, j] = best.J[n:, j] * problem.scale / max(problem.uplift_weight, 1e-300)
     sens = {}
     for j, p in enumerate(params):
-        per = 0.01 * abs(vals_nat[p]) if p != "t0" else 1e-3
+        # t0: for 1 ms; the sensor's offsets: 1 % of the amplitude (drift: per second)
+        per = (1e-3 if p == "t0" else 0.01 * problem.scale if p in NUISANCE
+               else 0.01 * abs(vals_nat[p]))
         sens[p] = float(np.sqrt(np.mean((Ju[:, j] / unc.derivatives[j] * per) ** 2)))
     ident = {
         "sensitivity_per_percent": sens,
         "noise_sigma": sigma,
-        "relative_stderr": {p: float(se[j] / abs(vals_nat[p])) if vals_nat[p] else None
+        "relative_stderr": {p: float(se[j] / abs(vals_nat[p]))
+                            if vals_nat[p] and p not in NUISANCE else None
                             for j, p in enumerate(params)},
     }
     for other in ("r", "c_f"):
@@ -97,6 +105,12 @@ def identifiability(problem: Problem, best: Best, unc: Uncertainty):
                 f"(nothing in this trace, or in the {problem.fit_model.describe()} model, "
                 f"brings {p} into play: an impact for r, say); leave it out of params"
             )
+        elif p in NUISANCE:
+            if not se[j] < 0.1 * problem.scale:
+                messages.append(
+                    f"the trace does not pin the sensor's {p} down: standard error "
+                    f"{se[j]:.3g} {UNITS[p]}, {100 * se[j] / problem.scale:.3g} % of the "
+                    "amplitude; fit without it (offset=False, drift=False)")
         elif p != "t0" and not rel < 0.1:
             messages.append(
                 f"the trace does not pin {p} down: standard error {100 * rel:.3g} % of its "
@@ -115,8 +129,9 @@ def identifiability(problem: Problem, best: Best, unc: Uncertainty):
 
 def lack_of_fit(problem: Problem, u_fit: np.ndarray, keep: np.ndarray) -> dict:
     """The lack-of-fit check of the displacement residuals (kept samples, time order)."""
-    e = (u_fit - problem.u_meas)[keep]
+    e = (u_fit - problem.u_meas)[keep]  # u_fit: as the sensor reads it
     rms = float(np.sqrt(np.mean(e**2)))
     fm = problem.fit_model
     return _lack.lack_of_fit(e, rms, problem.scale, fm.describe(),
-                             _models.models_above(fm, problem.params))
+                             _models.models_above(fm, problem.params), t=problem.t[keep],
+                             fitted=tuple(p for p in problem.params if p in NUISANCE))

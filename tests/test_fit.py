@@ -47,6 +47,7 @@ def noisy_seed_trace(seed, gen=None):
 
 def z_scores(fit, truth):
     """(estimate - truth) / standard error of each fitted parameter."""
+    truth = {**dict.fromkeys(identification.NUISANCE, 0.0), **truth}  # no offset, no drift
     return {p: (fit.values[p] - truth[p]) / fit.stderr[p] for p in fit.names}
 
 
@@ -77,7 +78,10 @@ def noisy_fit():
 
 def test_noise_free_recovery(clean_fit):
     fit, truth = clean_fit
-    assert fit.converged and fit.names == identification.DEFAULT_PARAMS
+    # the default parameters, then the sensor's zeros (nuisance: the trace pins them)
+    assert fit.converged and fit.names == identification.DEFAULT_PARAMS + (
+        "offset", "offset_uplift")
+    assert abs(fit.values["offset"]) < 1e-6 and abs(fit.values["offset_uplift"]) < 1e-6
     for p in ("k_f", "r", "u0"):
         rel = abs(fit.values[p] / truth[p] - 1)
         assert rel < 1e-3, (p, fit.values[p], truth[p], rel)  # acceptance: 0.1 %
@@ -103,7 +107,9 @@ def test_noisy_recovery_and_coverage(noisy_fit):
 def test_fit_result_summary_and_response(noisy_fit):
     fit, _ = noisy_fit
     s = fit.summary()
-    assert set(s["values"]) == {"k_f", "r", "u0", "t0"} and set(s["stderr"]) == set(s["values"])
+    assert set(s["values"]) == {"k_f", "r", "u0", "t0", "offset", "offset_uplift"}
+    assert set(s["stderr"]) == set(s["values"]) and s["diagnosis"] is None
+    assert s["units"]["offset"] == "m"
     assert {"loss", "converged", "correlation", "identifiability", "units", "release"} <= set(s)
     assert s["units"]["k_f"] == "N/m" and s["units"]["t0"] == "s" and s["units"]["sigma"] == "m"
     assert s["release"]["held"] is False and s["release"]["t0_start_s"] == 0.0

@@ -43,8 +43,10 @@ def test_fit_json_is_one_object_and_nothing_else(clean_fit):
     for key in ("values", "stderr", "loss", "converged", "correlation", "warnings", "units",
                 "model", "trace", "release", "t0_used_s"):
         assert key in out
-    # the default parameters: k_f, r and the release state u0, t0
-    assert set(out["values"]) == set(out["stderr"]) == {"k_f", "r", "u0", "t0"}
+    # the default parameters: k_f, r and the release state u0, t0; the sensor's zeros
+    # (nuisance parameters, fitted: the trace pins them)
+    assert set(out["values"]) == set(out["stderr"]) == {"k_f", "r", "u0", "t0", "offset",
+                                                        "offset_uplift"}
     # what produced the numbers: model, impact rule, the start of r; what was read
     assert out["model"] == {"model": "simplified", "impact": "paper",
                             "r": "fitted, start 0.7354 (Eq 3)", "start_k_f_N_m": 550000.0,

@@ -33,7 +33,10 @@ from ._common import (
 FLAGS = {**COMMON_FLAGS, "structure": "--structure", "columns": "--columns",
          "units": "--units", "drop_nan": "--drop-nan", "contact": "--contact", "c_f": "--c-f",
          "starts": "--starts", "params": "--params"}
-_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m"}
+_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m",
+              "offset": "m", "offset_uplift": "m", "drift": "m/s"}  # + the sensor's
+_SENSOR = ("offset", "offset_uplift", "drift")
+_PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
 _CHANNELS = ("t", "u", "uplift")
 
@@ -82,7 +85,7 @@ def add_parser(subparsers):
                    help="structure file (default: Table 1); its k_f and Eq 3 r are the start")
     add_plausibility_argument(f)
     f.add_argument(
-        "--params", nargs="+", choices=list(_FIT_UNITS), metavar="P",
+        "--params", nargs="+", choices=list(_PARAMS), metavar="P",
         help="parameters to fit, from k_f r u0 t0 c_f (default: k_f r u0 t0, less what does "
         "not act in the model: with --contact continuous, c_f in place of r; with housner, "
         "no k_f); the others are held at the structure's values (k_f, Eq 3 r or --r, --c-f) "
@@ -126,7 +129,8 @@ def fit_trace(trace, structure, params, *, model="simplified", impact="paper", r
 
     initial = {k: float(v) for k, v in (("r", r), ("c_f", c_f)) if v is not None}
     kwargs = {} if starts is None else {"starts": starts}
-    shown = (identification.IdentifiabilityWarning, identification.OutlierWarning)
+    shown = (identification.IdentifiabilityWarning, identification.OutlierWarning,
+             identification.ConvergenceWarning)
     with warnings.catch_warnings(record=True) as caught:
         for cls in shown:
             warnings.simplefilter("always", cls)
@@ -148,8 +152,9 @@ def fit_value_table(fit, truth=None):
         v, se = fit.values[p], fit.stderr[p]
         row = f"{p:<10}{v:>14.6g}{se:>14.3g}"
         if truth is not None:
-            z = (v - truth[p]) / se if se > 0 and math.isfinite(se) else float("nan")
-            row += f"{truth[p]:>14.6g}{z:>10.2f}"
+            tv = truth.get(p, 0.0) if p in _SENSOR else truth[p]  # synthetic: no offset
+            z = (v - tv) / se if se > 0 and math.isfinite(se) else float("nan")
+            row += f"{tv:>14.6g}{z:>10.2f}"
         lines.append(row + f"  {_FIT_UNITS[p]}")
     return "\n".join(lines)
 
@@ -182,7 +187,10 @@ def lack_of_fit_line(lack):
     if not lack:
         return "lack of fit   not checked"
     th = lack["thresholds"]
-    verdict = ("FIRES: the model cannot represent the trace, standard errors do not hold"
+    diag = lack.get("diagnosis") or {}
+    cause = ("the model cannot represent the trace" if diag.get("cause", "model") == "model"
+             else f"the residuals look like {diag['message']}")
+    verdict = (f"FIRES: {cause}, standard errors do not hold"
                if lack["fires"] else "no (residuals consistent with noise)")
     return (f"lack of fit   {verdict}; lag-1 autocorrelation "
             f"{lack['lag1_autocorrelation']:+.3f} (limit {th['lag1_autocorrelation']:g}), "

@@ -1,0 +1,54 @@
+"""`fit_decay(..., model="auto")`: the rungs ranked by lack of fit and AIC."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import pytest
+
+import identification
+import rockjax
+from identification._auto import rank, ranking_table
+
+
+def _row(model, aic, lack=False, converged=True):
+    return {"model": model, "k": 5, "aic": aic, "rms": 5e-4, "lack_of_fit": lack,
+            "converged": converged, "k_f": 8e5, "seconds": 1.0}
+
+
+def test_rank_puts_noise_residuals_first_then_the_lowest_aic():
+    rows = [_row("simplified", -100.0, lack=True), _row("rigid_body", -90.0),
+            _row("two_spring_2dof (contact impact)", -95.0),
+            _row("two_spring_2dof (contact continuous)", -120.0, converged=False),
+            {"model": "broken", "error": "refused"}]
+    ranked = rank(rows)
+    assert [r["model"] for r in ranked] == [
+        "two_spring_2dof (contact impact)", "rigid_body", "simplified",
+        "two_spring_2dof (contact continuous)", "broken"]
+    assert ranked[0]["rank"] == 1 and ranked[0]["delta_aic"] == pytest.approx(25.0)
+    assert math.isclose(ranked[3]["delta_aic"], 0.0)
+    table = ranking_table(ranked)
+    assert table.count("\n") == 6 and "| 1 | two_spring_2dof (contact impact) |" in table
+    assert "refused: refused" in table and "FIRES" in table and "| NO |" in table
+
+
+def test_auto_refuses_params_and_lists():
+    trace, _ = identification.synthetic_trace(duration=1.0, rate_hz=50.0, noise=0.0)
+    with pytest.raises(ValueError, match="leave params out"):
+        identification.fit_decay(trace, model="auto", params=("k_f", "r"))
+    with pytest.raises(ValueError, match="fits one trace"):
+        identification.fit_decay([trace, trace], model="auto")
+
+
+@pytest.mark.slow  # fits every rung (the 2-DOF body's: minutes)
+def test_auto_on_an_sdof_trace_keeps_the_sdof():
+    trace, truth = identification.synthetic_trace(duration=8.0, rate_hz=100.0, seed=7)
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        fit = identification.fit_decay(trace, rockjax.mcmanus_column(), model="auto",
+                                       progress=False)
+    print(ranking_table(fit.ranking))
+    assert fit.model == "simplified" and fit.ranking[0]["model"] == "simplified"
+    assert abs(fit.values["k_f"] / truth["k_f"] - 1) < 0.02
+    assert len(fit.ranking) >= 3 and fit.summary()["ranking"][0]["rank"] == 1

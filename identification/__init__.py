@@ -11,7 +11,7 @@ of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitRe
 """
 
 from ._anomalies import split_releases as split_releases
-from ._fit import fit_decay as fit_decay
+from ._fit import fit_decay as fit_decay, Schedule as Schedule
 from ._joint import JointFitResult as JointFitResult
 from ._lack import residual_statistics as residual_statistics
 from ._models import (
@@ -35,6 +35,7 @@ from ._result import (
     OutlierWarning as OutlierWarning,
 )
 from ._synthetic import (
+    Faults as Faults,
     synthetic_trace as synthetic_trace,
     synthetic_trace_path as synthetic_trace_path,
     synthetic_truth as synthetic_truth,

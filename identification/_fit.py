@@ -22,9 +22,12 @@ it), the traced programs are kept on disk too (`identification._aot`).
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
+
+import rockjax
 
 from . import _auto, _joint
 from ._outliers import outlier_message
@@ -45,26 +48,90 @@ from ._uncertainty import identifiability, lack_of_fit, uncertainty
 _WARN_LEVEL = 3  # warnings point at the caller of fit_decay (fit_decay -> fit_single)
 
 
+@dataclasses.dataclass(frozen=True)
+class Schedule:
+    r"""How `fit_decay` searches: starting points and growing horizons, stage by stage.
+
+    **Arguments:**
+
+    - `starts`: number of starting points (vectorised with vmap): the first is `initial`,
+      the others shift logit(r) (and log c_f) by ±1 and multiply k_f by 2, 1/2, 4, ...
+      Default (None): 2; for the 2-DOF body 3, the others at k_f / 2 and 2 k_f first (its
+      misfit's basin around the true k_f is narrow: see `_models.start_offsets`).
+    - `horizons`: fractions of the motion after the release fitted in turn (growing
+      horizon; the samples before the release are in all of them), each stage starting
+      from the last: short horizons fix r and the phase before later cycles refine k_f,
+      which avoids the local minima of oscillatory fits. Default (None): (0.25, 0.5, 1.0);
+      for the 2-DOF body (0.125, 0.25, 0.5, 1.0), whose misfit over a whole trace has
+      many minima in k_f (see `identification._models.default_horizons`).
+    - `max_iter`: the iteration limit of each stage (default 40).
+    - `tol`: the relative change of the loss that ends a stage (default 1e-9).
+
+    The values are checked by `fit_decay` (errors name them).
+
+    **Example:**
+
+        >>> identification.Schedule(starts=4)
+        Schedule(starts=4, horizons=None, max_iter=40, tol=1e-09)
+    """
+
+    starts: int | None = None
+    horizons: tuple | None = None
+    max_iter: int = 40
+    tol: float = 1e-9
+
+    #: the keyword form of earlier versions: `fit_decay(starts=...)` and so on
+    KEYWORDS = ("starts", "horizons", "max_iter", "tol")
+
+    @classmethod
+    def from_keywords(cls, schedule, keywords: dict) -> Schedule:
+        """`schedule`, or one built from the keyword form popped from `keywords`; both at
+        once is a `rockjax.ParameterError` naming the keyword."""
+        given = {k: keywords.pop(k) for k in cls.KEYWORDS if k in keywords}
+        if schedule is None:
+            return cls(**given)
+        if not isinstance(schedule, cls):
+            raise rockjax.ParameterError(f"schedule must be an identification.Schedule, got "
+                                         f"{type(schedule).__name__}", param="schedule")
+        if given:
+            name = next(iter(given))
+            raise rockjax.ParameterError(f"{name}= and schedule= both given; set {name} on "
+                                         "the Schedule", param=name)
+        return schedule
+
+
+def _tolerances(integrator, keywords):
+    """(rtol, atol) of the fit's simulations: the integrator's, or the keyword form's."""
+    rtol, atol = keywords.pop("rtol", None), keywords.pop("atol", None)
+    if integrator is None:
+        return (1e-9 if rtol is None else rtol), (1e-11 if atol is None else atol)
+    if not isinstance(integrator, rockjax.integrators.EventRestart):
+        raise rockjax.ParameterError(
+            "integrator: a fit runs the event-restart integrator (its release time t0 is "
+            "differentiated); pass rockjax.integrators.EventRestart(rtol=..., atol=...), got "
+            f"{type(integrator).__name__}", param="integrator")
+    if rtol is not None or atol is not None:
+        raise rockjax.ParameterError("rtol=/atol= and integrator= both given; set them on "
+                                     "the integrator", param="rtol" if rtol is not None
+                                     else "atol")
+    return integrator.rtol, integrator.atol
+
+
 def fit_decay(
     trace,
     structure=None,
     params=None,
     *,
     model="simplified",
-    impact: str = "paper",
-    contact: str | None = None,
     initial: dict | None = None,
-    starts: int | None = None,
-    optimizer=None,
-    max_iter: int = 40,
-    horizons=None,
-    tol: float = 1e-9,
-    uplift_weight: float = 1.0,
-    rtol: float = 1e-9,
-    atol: float = 1e-11,
-    progress=None,
     offset=None,
     drift: bool = False,
+    uplift_weight: float = 1.0,
+    optimizer=None,
+    schedule: Schedule | None = None,
+    integrator=None,
+    progress=None,
+    **keywords,
 ):
     r"""Fit `params` of a rocking structure to a measured free-vibration decay trace.
 
@@ -91,31 +158,14 @@ def fit_decay(
       rigid_body, two_spring_2dof with impact and with continuous contact) fitted with its
       default parameters, the one whose residuals are noise with the lowest AIC returned,
       its `ranking` holding the table (`identification._auto`; minutes: each rung is a
-      full fit); `impact`: the SDOF impact rule (`rockjax.simulate`).
-    - `contact`: the contact law of the 2-DOF body, `"impact"` (Housner's impact at a
-      landing, r) or `"continuous"` (the springs and dashpots carry it; r does not act);
-      None: the model's own (`"impact"` for `"two_spring_2dof"`). Refused for models
-      without one.
+      full fit). An SDOF impact rule other than the paper's and the 2-DOF body's contact
+      law go on the model object: `rockjax.get_model("simplified", "after_uplift")`,
+      `rockjax.TwoSpring2DOF(contact="continuous")` (the springs and dashpots carry the
+      landing; r does not act, c_f is fitted in its place).
     - `initial`: dict of starting values overriding the defaults above (for a parameter
       not in `params`: the value it is held at). c_f starts, unless given here or by the
       model instance, at 5 % of critical damping of the vertical mode,
       $0.05\sqrt{2k_f(m_e+m_b)}$; held, at the model's damping (0 for "two_spring_2dof").
-    - `starts`: number of starting points (vectorised with vmap): the first is `initial`,
-      the others shift logit(r) (and log c_f) by ±1 and multiply k_f by 2, 1/2, 4, ...
-      Default (None): 2; for the 2-DOF body 3, the others at k_f / 2 and 2 k_f first (its
-      misfit's basin around the true k_f is narrow: see `_models.start_offsets`).
-    - `optimizer`: default (None) `levenberg_marquardt()`, stepped in chunks of 4 steps.
-      A plain optax optimiser (e.g. `optax.adam(1e-2)`) gets the gradient $J^Tr$. An
-      optimistix least-squares solver (e.g. `optimistix.LevenbergMarquardt(rtol=1e-6,
-      atol=1e-9)`) runs each stage with `optimistix.least_squares` to its own
-      termination (at most `max_iter` steps; `tol` does not apply).
-    - `max_iter`, `tol`: iteration limit (per horizon) and relative loss-change tolerance.
-    - `horizons`: fractions of the motion after the release fitted in turn (growing
-      horizon; the samples before the release are in all of them), each stage starting
-      from the last: short horizons fix r and the phase before later cycles refine k_f,
-      which avoids the local minima of oscillatory fits. Default (None): (0.25, 0.5, 1.0);
-      for the 2-DOF body (0.125, 0.25, 0.5, 1.0), whose misfit over a whole trace has
-      many minima in k_f (see `identification._models.default_horizons`).
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
     - `offset`: fit the sensor's zero of each channel (`offset` [m] of the displacement,
       `offset_uplift` [m] of the uplift when fitted) as nuisance parameters: the model as
@@ -127,8 +177,21 @@ def fit_decay(
       [m/s] from the release time the fit starts from (default False).
       The nuisance parameters are in `FitResult.values` and `stderr` like the others; the
       fitted `response` is the model as the sensor reads it (offset and drift added).
-    - `rtol`, `atol`: simulation tolerances; `progress`: show a progress bar (default: only
-      if the fit takes more than about 3 s and stderr is a terminal).
+    - `optimizer`: default (None) `levenberg_marquardt()`, stepped in chunks of 4 steps.
+      A plain optax optimiser (e.g. `optax.adam(1e-2)`) gets the gradient $J^Tr$. An
+      optimistix least-squares solver (e.g. `optimistix.LevenbergMarquardt(rtol=1e-6,
+      atol=1e-9)`) runs each stage with `optimistix.least_squares` to its own
+      termination (at most `schedule.max_iter` steps; `schedule.tol` does not apply).
+    - `schedule`: an `identification.Schedule`: the starting points, the growing
+      horizons, and each stage's iteration limit and tolerance (default `Schedule()`).
+    - `integrator`: a `rockjax.integrators.EventRestart` whose `rtol`, `atol` are the
+      simulations' tolerances (default rtol 1e-9, atol 1e-11; the fit differentiates in
+      forward mode, whatever its `adjoint`).
+    - `progress`: show a progress bar (default: only if the fit takes more than about
+      3 s and stderr is a terminal).
+    - `**keywords`: the keyword form of earlier versions, still accepted: `impact=`,
+      `contact=` (the model's), `starts=`, `horizons=`, `max_iter=`, `tol=` (the
+      `Schedule`'s), `rtol=`, `atol=` (the integrator's).
 
     **Returns:** a `FitResult`. Warns `ConvergenceWarning` when the fit ends unconverged
     (`FitResult.converged` False), whatever the optimiser; warns `IdentifiabilityWarning`
@@ -167,8 +230,14 @@ def fit_decay(
     all have, or all lack, the uplift channel; outliers are not searched for. The other
     arguments apply to every trace.
     """
+    schedule = Schedule.from_keywords(schedule, keywords)
+    rtol, atol = _tolerances(integrator, keywords)
+    impact, contact = keywords.pop("impact", "paper"), keywords.pop("contact", None)
+    if keywords:
+        raise TypeError(f"fit_decay() got unexpected keyword arguments {sorted(keywords)}")
     settings = Settings(model=model, impact=impact, contact=contact, initial=initial,
-                        starts=starts, max_iter=max_iter, horizons=horizons, tol=tol,
+                        starts=schedule.starts, max_iter=schedule.max_iter,
+                        horizons=schedule.horizons, tol=schedule.tol,
                         uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress,
                         offset=offset, drift=drift)
     if isinstance(model, str) and model == "auto":

@@ -5,6 +5,7 @@ clipping, a second release)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 from ._trace import SYNTHETIC_TRACES
@@ -71,32 +72,61 @@ def _packaged(name: str, suffix: str):
     return res
 
 
+@dataclasses.dataclass(frozen=True)
+class Faults:
+    r"""The faults of a lab sensor that `synthetic_trace` adds to a clean decay: the
+    reading is $u(t) + o + d\,t + A\sin(2\pi f t) + \varepsilon$, clipped to $\pm$`clip`.
+
+    **Arguments:**
+
+    - `offset` $o$ [m], `drift` $d$ [m/s]: the sensor's zero and drift (default 0).
+    - `hum`: `(A [m], f [Hz])`, a steady periodic component (50 Hz mains hum, say).
+    - `clip` [m]: the sensor saturates at $\pm$clip (the reading is clipped there).
+    - `second`: `(t_2 [s], u_2 [m])`: the structure is set to u_2 at t_2 - 0.2 s, held, and
+      released again at t_2 (the first decay should be over by then).
+
+    **Example:**
+
+        >>> identification.Faults(offset=4e-3)
+        Faults(offset=0.004, drift=0.0, hum=None, clip=None, second=None)
+    """
+
+    offset: float = 0.0
+    drift: float = 0.0
+    hum: tuple | None = None
+    clip: float | None = None
+    second: tuple | None = None
+
+
 def synthetic_trace(*, k_f: float = 800e3, r: float = 0.85, model="simplified",
                     u0: float = 0.1, rate_hz: float = 200.0, duration: float = 8.0,
-                    noise: float = 5e-4, seed: int | None = 0, offset: float = 0.0,
-                    drift: float = 0.0, hum: tuple | None = None, clip: float | None = None,
-                    second: tuple | None = None, structure=None):
+                    noise: float = 5e-4, seed: int | None = 0, faults: Faults | None = None,
+                    structure=None, **keywords):
     r"""A SYNTHETIC decay trace (a rockjax simulation, not a measurement) with the faults a
     lab trace can have, and its truth.
 
     The structure (default: the McManus column of Table 1 with `k_f` [N/m]) is released
     from rest at `u0` [m] at t = 0 and rocks with restitution `r` under `model`, sampled at
-    `rate_hz` [Hz] for `duration` [s]; the sensor then reads
-    $u(t) + o + d\,t + A\sin(2\pi f t) + \varepsilon$, clipped to $\pm$`clip`:
-
-    - `noise` [m]: std of the Gaussian noise $\varepsilon$ (numpy `default_rng(seed)`);
-    - `offset` $o$ [m], `drift` $d$ [m/s]: the sensor's zero and drift;
-    - `hum`: `(A [m], f [Hz])`, a steady periodic component (50 Hz mains hum, say);
-    - `clip` [m]: the sensor saturates at $\pm$clip (the reading is clipped there);
-    - `second`: `(t_2 [s], u_2 [m])`: the structure is set to u_2 at t_2 - 0.2 s, held, and
-      released again at t_2 (the first decay should be over by then).
+    `rate_hz` [Hz] for `duration` [s]; the sensor reads it with Gaussian noise of std
+    `noise` [m] (numpy `default_rng(seed)`) and `faults` (an `identification.Faults`:
+    offset, drift, mains hum, clipping, a second release; default none). The faults'
+    fields are also accepted as keywords (`offset=4e-3`), the form of earlier versions.
 
     Returns `(DecayTrace, truth)`: truth holds every argument (and `source`), in SI units.
 
     ```python
-    trace, truth = identification.synthetic_trace(offset=4e-3, duration=2.0, seed=1)
+    trace, truth = identification.synthetic_trace(faults=identification.Faults(offset=4e-3),
+                                                  duration=2.0, seed=1)
     ```
     """
+    unknown = set(keywords) - {f.name for f in dataclasses.fields(Faults)}
+    if unknown:
+        raise TypeError(f"synthetic_trace() got unexpected keyword arguments {sorted(unknown)}")
+    if faults is not None and keywords:
+        raise ValueError(f"{sorted(keywords)[0]}= and faults= both given; set it on the Faults")
+    faults = Faults(**keywords) if faults is None else faults
+    offset, drift, hum, clip, second = (faults.offset, faults.drift, faults.hum, faults.clip,
+                                        faults.second)
     import numpy as np
 
     import rockjax

@@ -266,3 +266,45 @@ def test_an_optimistix_solver_gives_the_default_fit():
     for p in ("k_f", "r", "u0"):
         assert abs(fit.values[p] - ref.values[p]) < 0.01 * ref.stderr[p], p
     assert fit.loss == pytest.approx(ref.loss, rel=1e-6)
+
+
+def test_schedule_and_integrator_objects_equal_the_keyword_form(noisy_fit):
+    """`schedule=Schedule(...)` and `integrator=EventRestart(rtol, atol)` run the fit of the
+    keyword form (issue 23: fit_decay in at most 12 parameters; same compiled program);
+    both forms at once, a stepper integrator and an unknown keyword are refused naming the
+    argument, before anything runs."""
+    fit, truth = noisy_fit
+    trace, _ = _load("synthetic_decay_noisy")
+    s = rockjax.mcmanus_column()
+    again = fit_decay(trace, s, initial={"k_f": 2 * truth["k_f"], "r": float(s.restitution)},
+                      schedule=identification.Schedule(starts=2), progress=False,
+                      integrator=rockjax.integrators.EventRestart(rtol=1e-9, atol=1e-11))
+    assert again.names == fit.names
+    for p in fit.names:
+        assert again.values[p] == pytest.approx(fit.values[p], rel=1e-12, abs=1e-15)
+    with pytest.raises(rockjax.ParameterError, match="starts= and schedule=") as e:
+        fit_decay(trace, s, starts=2, schedule=identification.Schedule())
+    assert e.value.param == "starts"
+    with pytest.raises(rockjax.ParameterError, match="event-restart") as e:
+        fit_decay(trace, s, integrator=rockjax.integrators.RK4())
+    assert e.value.param == "integrator"
+    with pytest.raises(rockjax.ParameterError) as e:
+        fit_decay(trace, s, rtol=1e-8, integrator=rockjax.integrators.EventRestart())
+    assert e.value.param == "rtol"
+    with pytest.raises(TypeError, match="unexpected keyword arguments \\['startz'\\]"):
+        fit_decay(trace, s, startz=2)
+
+
+def test_synthetic_faults_object_equals_the_keywords():
+    """`identification.Faults` carries synthetic_trace's sensor faults; the keyword form of
+    the same faults gives the same trace; both at once are refused."""
+    a, ta = identification.synthetic_trace(faults=identification.Faults(offset=4e-3, clip=0.09),
+                                           duration=1.0, rate_hz=100.0, seed=3)
+    b, tb = identification.synthetic_trace(offset=4e-3, clip=0.09, duration=1.0, rate_hz=100.0,
+                                           seed=3)
+    np.testing.assert_array_equal(a.u, b.u)
+    assert ta == tb and ta["offset"] == 4e-3 and np.max(a.u) <= 0.09
+    with pytest.raises(ValueError, match="faults= both given"):
+        identification.synthetic_trace(offset=1e-3, faults=identification.Faults())
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        identification.synthetic_trace(ofset=1e-3)

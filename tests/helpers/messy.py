@@ -10,7 +10,8 @@ before issue 24 (measured on the commit before it). Add a row by appending a `Ca
 (`tests/test_messy.py` reads every row).
 
 - ``python tests/helpers/messy.py`` (or ``python -m tests.helpers.messy --table``) prints the
-  table: case, class, outcome before issue 24, expected, outcome now, pass/FAIL;
+  table: case, class, outcome before issue 24, expected, outcome now, pass/FAIL (the rows
+  that a fit judges, `FIT_CASES`, take a few minutes; ``--no-fits`` leaves them out);
 - ``python tests/helpers/messy.py --write DIR`` writes the files into DIR.
 
 The signals are synthetic (no real record): a zero-mean ground acceleration of 0.3 g peak
@@ -213,6 +214,8 @@ class Case:
     before: str
     kwargs: dict = dataclasses.field(default_factory=dict)
     gzip: bool = False
+    #: the row runs a fit (seconds to compile): tests/test_messy.py marks it slow
+    slow: bool = False
 
     def write(self, folder: pathlib.Path) -> pathlib.Path:
         data = self.content() if callable(self.content) else self.content
@@ -370,6 +373,80 @@ CASES: list[Case] = [
 ]
 
 
+# ------------------------------------------------- traces that only a fit can judge
+#: the decay of these rows: identification.synthetic_trace's defaults (the Table 1 column
+#: with k_f 800 kN/m, r 0.85, released from 0.1 m, 0.5 mm noise)
+FIT_TRUTH = {"k_f": 800e3, "r": 0.85}
+
+
+def fault_trace_csv(duration=8.0, rate_hz=200.0, seed=0, r=0.85, **faults) -> str:
+    """A synthetic decay (`identification.synthetic_trace`) with a sensor's `faults`, as the
+    CSV text `t_s,u_m`."""
+    import identification
+
+    trace, _ = identification.synthetic_trace(duration=duration, rate_hz=rate_hz, seed=seed,
+                                              r=r, faults=identification.Faults(**faults))
+    rows = [f"{_fmt(t)},{_fmt(u)}" for t, u in zip(trace.t, trace.u)]
+    return "\n".join(["t_s,u_m", *rows]) + "\n"
+
+
+def fit_file(path, **kwargs):
+    """`identification.fit_decay` of the trace file at `path` (the Table 1 column)."""
+    import identification
+    import rockjax
+
+    return identification.fit_decay(identification.read_trace(path), rockjax.mcmanus_column(),
+                                    progress=False, **kwargs)
+
+
+def _recovered(offset=None, drift=None, rel=0.01):
+    """A predicate: k_f and r within `rel`, and the sensor's offset [m] / drift [m/s]
+    within 0.5 mm / 0.2 mm/s of theirs."""
+    def check(fit):
+        bad = [f"{p} {fit.values[p]:.6g} (truth {FIT_TRUTH[p]:.6g})" for p in ("k_f", "r")
+               if abs(fit.values[p] / FIT_TRUTH[p] - 1) > rel]
+        for name, want, tol in (("offset", offset, 5e-4), ("drift", drift, 2e-4)):
+            if want is not None and abs(fit.values.get(name, np.nan) - want) > tol:
+                bad.append(f"{name} {fit.values.get(name)} (truth {want})")
+        return "; ".join(bad) or None
+    return check
+
+
+def _diagnosed(cause, text):
+    def check(fit):
+        d = fit.diagnosis or {}
+        ok = d.get("cause") == cause and re.search(text, d.get("message", ""))
+        return None if ok else f"diagnosis {d}"
+    return check
+
+
+_FIT_BEFORE = "fit: residuals 'consistent with noise', noise and standard errors 13x"
+FIT_CASES = [
+    Case(f"tr_offset_{name}.csv", fit_file, lambda o=o: fault_trace_csv(offset=o),
+         Truth(predicate=_recovered(offset=o)), "sensor offset",
+         _FIT_BEFORE if abs(o) < 5e-3 else "k_f -2.3 %, lag-1 autocorrelation 0.8, no warning",
+         slow=True)
+    for name, o in (("p4mm", 4e-3), ("m4mm", -4e-3), ("p8mm", 8e-3), ("m8mm", -8e-3))
+] + [
+    Case("tr_drift.csv", fit_file, lambda: fault_trace_csv(drift=1e-3, seed=6),
+         Truth(predicate=_recovered(drift=1e-3)), "sensor drift",
+         "no drift parameter", kwargs={"drift": True}, slow=True),
+    Case("tr_clipped.csv", fit_file,
+         lambda: fault_trace_csv(duration=2.0, rate_hz=100.0, seed=3, clip=0.05),
+         Truth(error="TraceError", match=r"clipped.*50 mm|50 mm.*clipped|saturat"),
+         "saturated trace", "read as a hold at 0.05 m; k_f +248 %", slow=True),
+    Case("tr_two_releases.csv", fit_file,
+         lambda: fault_trace_csv(rate_hz=100.0, seed=4, r=0.7, second=(5.0, 0.09)),
+         Truth(error="TraceError", match=r"holds 2 releases.*release at 5\.0\d* s"),
+         "second release", "silently fitted as one decay", slow=True),
+    Case("tr_mains_hum.csv", fit_file,
+         lambda: fault_trace_csv(duration=3.0, rate_hz=1000.0, seed=5, hum=(2e-3, 50.0)),
+         Truth(predicate=_diagnosed("periodic", r"50(\.0)? Hz"), warns="LackOfFitWarning"),
+         "mains hum", "lack of fit blamed on the model", slow=True),
+]
+CASES += FIT_CASES
+
+
 # ---------------------------------------------------------------------------- checking
 def read(case: Case, path: pathlib.Path):
     """The reader of `case` applied to `path`."""
@@ -448,13 +525,13 @@ def check(case: Case, folder: pathlib.Path) -> tuple[bool, str]:
     return not wrong, text + ("" if not wrong else " -- WRONG: " + "; ".join(wrong))
 
 
-def table(folder: pathlib.Path | None = None) -> str:
-    """The corpus as a text table: case, class, outcome before issue 24, expected,
-    outcome now, pass/FAIL (paths shortened to the file's name)."""
+def table(folder: pathlib.Path | None = None, cases: list[Case] | None = None) -> str:
+    """The corpus (or `cases`) as a text table: case, class, outcome before issue 24,
+    expected, outcome now, pass/FAIL (paths shortened to the file's name)."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(folder or tmp)
-        for case in CASES:
+        for case in CASES if cases is None else cases:
             ok, outcome = check(case, folder)
             outcome = outcome.replace(str(folder) + "/", "")
             rows.append((case.name, case.kind, case.before[:60], str(case.truth)[:70],
@@ -478,10 +555,10 @@ def main(argv: list[str]) -> int:
         for case in CASES:
             print(case.write(folder))
         return 0
-    if argv and argv[0] not in ("--table",):
+    if argv and argv[0] not in ("--table", "--no-fits"):
         print(__doc__)
         return 2
-    print(table())
+    print(table(cases=[c for c in CASES if not c.slow] if "--no-fits" in argv else None))
     return 0
 
 

@@ -344,3 +344,13 @@ def test_fit_figures_live_in_plotting(tmp_path):
     assert len(fig.axes) == 2
     fig.savefig(tmp_path / "j.png")
     assert (tmp_path / "j.png").stat().st_size > 1000
+
+
+def test_an_impact_rule_that_cannot_apply_is_refused(tmp_path):
+    """`--impact after_uplift` with a model that has its own contact law is refused naming
+    --impact (issue 24: it was silently ignored, and the plot said "impact rule ...")."""
+    r = run_cli("simulate", "--u0", "0.05", "--model", "rigid_body", "--impact",
+                "after_uplift", "--t1", "0.5", cwd=tmp_path)
+    assert r.returncode == 2
+    assert "--impact: the impact rule 'after_uplift' applies to the SDOF" in r.stderr
+    assert r.stderr.rstrip().endswith("omit --impact")

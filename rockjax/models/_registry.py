@@ -41,9 +41,9 @@ def get_model(model, impact: str = "paper") -> AbstractRockingModel:
     if isinstance(model, AbstractRockingModel):
         if impact != "paper" and not isinstance(model, SDOF):
             raise ParameterError(
-                f"impact={impact!r} applies to the SDOF models of Eq. 1 (housner, "
+                f"the impact rule {impact!r} applies to the SDOF models of Eq. 1 (housner, "
                 f"simplified, exact, smooth); {type(model).__name__} has its own contact "
-                "law (its impacts are landings): leave impact at 'paper'", param="impact")
+                "law (its impacts are landings)", param="impact", omit=True)
         return model
     raise ValueError(
         f"model must be one of {', '.join(repr(m) for m in MODELS)}, an "

@@ -43,6 +43,23 @@ def test_free_vibration_basic(free_run, column):
     np.testing.assert_allclose(res.uplift, rockjax.uplift(column, res.u), atol=1e-15)
 
 
+def test_report(free_run, column):
+    """`Response.report` (the text of `rockjax simulate`): status, peaks, impacts and the
+    residual displacement of a run that did not overturn."""
+    res, model = free_run, rockjax.get_model("simplified")
+    out, theta = res.summary(), res.peak_theta(column, model)
+    lines = res.report(column, model).splitlines()
+    assert lines == [
+        "status        completed",
+        f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s",
+        f"peak theta    {theta:.6g} rad = {theta / float(column.alpha_c):.4g} alpha_c",
+        f"peak uplift   {out['peak_uplift']:.6g} m",
+        f"impacts       {out['n_impacts']}",
+        f"residual u    {out['residual_u']:.6g} m at t = 4 s"]
+    over = simulate(column, FreeVibration(0.99 * float(column.u_overturn), 1.0), 2.0)
+    assert over.report(column, model).splitlines()[-1].startswith("t_overturn    ")
+
+
 def test_energy_conserved_between_impacts(free_run, column):
     res = free_run
     E = np.asarray(energy(column, res.u, res.v))

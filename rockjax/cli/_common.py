@@ -14,6 +14,7 @@ import rockjax
 from rockjax._cache import compile_cache_dir, COMPILE_CACHE_ENV  # noqa: F401 (re-exported)
 from rockjax._checks import check_r
 from rockjax._fidelity import sdof_lift_off_message
+from rockjax._report import model_info as _model_info, model_line  # noqa: F401 (re-exported)
 
 EXIT_USAGE = 2
 #: the longest run the CLI accepts, in output samples or record steps
@@ -23,8 +24,6 @@ _MAX_SCALES = 1_000_000
 #: where the --model help sends the user
 MODEL_GUIDE = ("which model for which scene: docs/models.md (the paper's SDOF models "
                "over-predict a body rocking under ground motion; rigid_body does not)")
-#: the models whose impacts are their landings, not the SDOF impact rule
-BODY_MODELS = ("rigid_body", "two_spring_2dof")
 #: the library parameters that most commands set, and the option that sets each; a command
 #: adds its own (`FLAGS` in its module)
 COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t1",
@@ -34,11 +33,6 @@ COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t
 RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale"}
 #: the units of acceleration a record may be in (`rockjax.UNITS`), for --units' help
 RECORD_UNITS_METAVAR = "{" + ",".join(rockjax.UNITS["acceleration"]) + "}"
-#: the units of the derived quantities of a structure (`derived_table`, pushover --json)
-DERIVED_UNITS = {"W": "N", "H_c": "m", "R_c": "m", "alpha_c": "rad", "R_e": "m",
-                 "alpha_e": "rad", "R_b": "m", "alpha_b": "rad", "delta_0": "m",
-                 "theta_crit": "rad", "u_crit": "m", "K1": "N/m", "P_crit": "N",
-                 "P_crit2": "N", "u_overturn": "m", "restitution": "-"}
 #: the fidelity warning's advice in CLI syntax
 _FIDELITY_ADVICE = ("use --model rigid_body (the body's own one-DOF equation, about as fast) "
                     "or two_spring_2dof. See docs/models.md; silence with "
@@ -255,48 +249,8 @@ def fidelity_note(args, structure, forced, peak_u):
 
 
 def model_info(args):
-    """The model, impact rule and restitution behind a CLI result (for text and JSON); the
-    body models impact at their landings (`--impact` does not apply to them)."""
-    impact = "landings" if args.model in BODY_MODELS else args.impact
-    return {"model": args.model, "impact": impact, "r": "Eq 3" if args.r is None else args.r}
-
-
-def model_line(info):
-    """`model_info` as one line of text."""
-    r = info["r"] if isinstance(info["r"], str) else f"{info['r']:g}"
-    if info["impact"] == "landings":
-        return f"{info['model']} model, impacts at landings (Eqs 2-3), r {r}"
-    return f"{info['model']} model, impact rule {info['impact']}, r {r}"
-
-
-def record_info(record, scale=1.0):
-    """What was read from a record: file, units (and where they came from), dt, points,
-    duration, PGA and the scale applied, as plain Python (SI units, PGA also in g)."""
-    pga, g = float(record.pga), rockjax.G_STANDARD
-    return {"file": str(record.source), "units_in_file": record.units_in_file,
-            "units_from": getattr(record, "units_source", None), "dt_s": float(record.dt),
-            "n_points": int(record.npts), "duration_s": float(record.dt * (record.npts - 1)),
-            "pga_m_s2": pga, "pga_g": pga / g, "scale": float(scale),
-            "scaled_pga_g": float(scale) * pga / g}
-
-
-def record_line(info):
-    """`record_info` as one line of text."""
-    src = f" ({info['units_from']})" if info.get("units_from") else ""
-    return (
-        f"{pathlib.Path(info['file']).name}: units {info['units_in_file']}{src}, "
-        f"dt {info['dt_s']:g} s, {info['n_points']} points, {info['duration_s']:g} s, "
-        f"PGA {info['pga_g']:.4g} g x scale {info['scale']:g} = {info['scaled_pga_g']:.4g} g"
-    )
-
-
-def derived_table(derived):
-    """The derived quantities of a structure as a text table (angles also in degrees)."""
-    lines = [f"{'quantity':<14}{'value':>14}  unit"]
-    for k, unit in DERIVED_UNITS.items():
-        extra = f"  ({derived[k + '_deg']:.4f} deg)" if k + "_deg" in derived else ""
-        lines.append(f"{k:<14}{derived[k]:>14.6g}  {unit}{extra}")
-    return "\n".join(lines)
+    """`rockjax._report.model_info` of --model, --impact and --r."""
+    return _model_info(args.model, args.impact, args.r)
 
 
 # ------------------------------------------------------- library errors in CLI syntax

@@ -6,6 +6,7 @@ import json
 import math
 
 from rockjax._plotting import plot_pushover, pushover_curves
+from rockjax._report import DERIVED_UNITS, pushover_table
 
 from ._common import (
     add_outputs,
@@ -13,8 +14,6 @@ from ._common import (
     check_outputs,
     CLIError,
     converter,
-    derived_table,
-    DERIVED_UNITS,
     load_structure,
     positive_float,
     write_columns,
@@ -59,16 +58,6 @@ def _umax(s, umax):
     return umax
 
 
-def _print_table(derived, curves):
-    n = len(curves["u"])
-    print(derived_table(derived), "", f"{'u [m]':>10} {'simplified [N]':>15} {'exact [N]':>12} "
-          f"{'numerical [N]':>14}", sep="\n")
-    for i in sorted({int(round(k * (n - 1) / 20)) for k in range(21)}):
-        print(f"{curves['u'][i]:10.5f} {curves['simplified'][i]:15.3f} "
-              f"{curves['exact'][i]:12.3f} {curves['numerical'][i]:14.3f}")
-    print(f"({n} points; --json or --out FILE.csv for all of them)")
-
-
 def run(args):
     s = load_structure(args.structure, args.check_plausible)
     umax = _umax(s, args.umax)
@@ -85,7 +74,8 @@ def run(args):
             "units": {"u": "m", "simplified": "N", "exact": "N", "numerical": "N",
                       "angles": "rad (and deg in *_deg)", "derived": DERIVED_UNITS}}))
         return 0
-    _print_table(s.derived(), curves)
+    print(pushover_table(s.derived(), curves))
+    print(f"({len(curves['u'])} points; --json or --out FILE.csv for all of them)")
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

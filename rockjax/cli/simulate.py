@@ -10,6 +10,7 @@ import numpy as np
 
 import rockjax
 from rockjax._plotting import plot_response
+from rockjax._report import record_info, record_line
 
 from ._common import (
     add_model_arguments,
@@ -26,8 +27,6 @@ from ._common import (
     model_line,
     positive_float,
     RECORD_FLAGS,
-    record_info,
-    record_line,
     record_units,
     RECORD_UNITS_METAVAR,
     write_columns,
@@ -126,19 +125,12 @@ def _result(args, s, res, t1, read):
             "units": UNITS}
 
 
-def _print_summary(args, out):
+def _print_summary(args, s, res, out):
     read = out["excitation"]
     print(f"record        {record_line(read)}" if read["type"] == "ground_motion" else
           f"release       u0 = {read['u0']:g} m, v0 = {read['v0']:g} m/s")
-    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s\n"
-          f"status        {out['status']}\n"
-          f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s\n"
-          f"peak theta    {out['peak_theta']:.6g} rad = {out['peak_theta_over_alpha_c']:.4g} "
-          f"alpha_c\npeak uplift   {out['peak_uplift']:.6g} m\nimpacts       {out['n_impacts']}")
-    if out["t_overturn"] is not None:
-        print(f"t_overturn    {out['t_overturn']:.6g} s")
-    else:
-        print(f"residual u    {out['residual_u']:.6g} m at t = {out['t_end']:.6g} s")
+    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s")
+    print(res.report(s, rockjax.get_model(args.model, args.impact)))
     for what, path in (("time history", args.out), ("plot", args.plot)):
         if path:
             print(f"{what} written to {path}")
@@ -164,5 +156,5 @@ def run(args):
     if args.json:
         print(json.dumps(out))
         return 0
-    _print_summary(args, out)
+    _print_summary(args, s, res, out)
     return 0

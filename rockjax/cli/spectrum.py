@@ -20,7 +20,6 @@ from ._common import (
     COMMON_FLAGS,
     load_structure,
     model_info,
-    model_line,
     number_list,
     save,
 )
@@ -71,21 +70,6 @@ def _periods(args, s):
     return x / p if args.pulse == "rectangular" else 2 * math.pi / (p * x)
 
 
-def _print_report(args, sp, info):
-    x = "p t1" if sp.kind == "rectangular" else "wp/p"
-    print(f"overturning spectrum, {sp.kind} pulse ({model_line(info)})\n"
-          f"p = {sp.p:.4g} rad/s, g tan(alpha) = {sp.g_tan_alpha:.4g} m/s2, rtol {sp.rtol:g}\n"
-          f"{'period [s]':>11} {x:>7} {'a [m/s2]':>10} {'a/(g tan a)':>12}  {'mode':<13}"
-          f"{'no impact [m/s2]':>17}")
-    for i in np.argsort(sp.periods):
-        print(f"{sp.periods[i]:11.4g} {sp.x[i]:7.3f} {sp.amplitude[i]:10.4g} "
-              f"{sp.normalised[i]:12.4f}  {sp.mode[i]:<13}{sp.amplitude_no_impact[i]:17.4g}")
-    print(f"{sp.n_runs} runs in {sp.wall_time:.2f} s; {sp.n_failed} failed runs "
-          "(max_impacts, solver_failure) counted as survivors")
-    if np.any(np.isnan(sp.amplitude)):
-        print("nan: nothing overturned up to 1000 g tan(alpha)")
-
-
 def run(args):
     s = load_structure(args.structure, args.check_plausible)
     check_outputs(args)
@@ -106,7 +90,7 @@ def run(args):
         print(json.dumps({**sp.to_dict(), "model_info": info, "plot": args.plot,
                           "csv": args.out}))
         return 0
-    _print_report(args, sp, info)
+    print(sp.report())
     for what, path in (("plot", args.plot), ("CSV", args.out)):
         if path:
             print(f"{what} written to {path}")

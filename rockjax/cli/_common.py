@@ -15,6 +15,7 @@ from rockjax._cache import compile_cache_dir, COMPILE_CACHE_ENV  # noqa: F401 (r
 from rockjax._checks import check_r
 from rockjax._fidelity import sdof_lift_off_message
 from rockjax._report import model_info as _model_info, model_line  # noqa: F401 (re-exported)
+from rockjax._suite import split_record_units  # noqa: F401 (re-exported)
 
 EXIT_USAGE = 2
 #: the longest run the CLI accepts, in output samples or record steps
@@ -55,16 +56,19 @@ def first_line(e):
 
 # ------------------------------------------------------------------ argument converters
 def converter(option, kind=float, test=None, must=None, noun=None):
-    """The one factory of argparse types: the text as `kind` (float or int), which must pass
-    `test` (else "OPTION must MUST, got X": the integer read, or the text of a number);
-    text that is no number: "OPTION must be NOUN" (default "an integer" or "a number")."""
-    noun = noun or ("an integer" if kind is int else "a number")
+    """The one factory of argparse types: the text as `kind` (float, int, or a parser that
+    raises ValueError), which must pass `test` (else "OPTION must MUST, got X": the integer
+    read, or the text); text that `kind` refuses: "OPTION must be NOUN, got TEXT" (default
+    "an integer" or "a number"; a parser's own message when it has no `noun`)."""
+    if noun is None and kind in (int, float):
+        noun = "an integer" if kind is int else "a number"
 
     def conv(text):
         try:
             x = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{option} must be {noun}, got {text!r}") from None
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(
+                str(e) if noun is None else f"{option} must be {noun}, got {text!r}") from None
         if test is not None and not test(x):
             got = x if kind is int else repr(text)
             raise argparse.ArgumentTypeError(f"{option} must {must}, got {got}")
@@ -143,20 +147,6 @@ def record_units(text):
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def split_record_units(text):
-    """(path, units or None) of a `--record` value: a trailing `:UNIT` naming a unit of
-    acceleration of `rockjax.UNITS` (`:g`, `:m/s2`, `:cm/s2`, `:gal`, also `:m/s^2`,
-    `:mps2`, ...) names the record's units (canonical name); any other colon belongs to the
-    path, and so does the suffix when the whole text names an existing file."""
-    head, sep, tail = str(text).rpartition(":")
-    units = None
-    if sep and rockjax.UNITS.kind_of(tail) == "acceleration":
-        units = rockjax.UNITS.normalize(tail, "acceleration")
-    if units is None or not head or pathlib.Path(text).exists():
-        return str(text), None
-    return head, units
-
-
 # ----------------------------------------------------------------- shared arguments
 def add_model_arguments(parser, model_help, fidelity=True):
     """--model (every model of the ladder, from `rockjax.MODELS`), --r and --impact, and
@@ -181,6 +171,13 @@ def add_outputs(parser, plot, out=None, json="print one JSON object and nothing 
         parser.add_argument("--out", default=out_default, metavar="FILE.csv", help=out)
     parser.add_argument("--plot", metavar="FILE.png", help=plot)
     parser.add_argument("--json", action="store_true", help=json)
+
+
+def add_structure_argument(parser):
+    """--structure FILE.toml (one; default Table 1) and --no-plausibility-check."""
+    parser.add_argument("--structure", metavar="FILE.toml",
+                        help="structure file (default: Table 1)")
+    add_plausibility_argument(parser)
 
 
 # ------------------------------------------------------------------------ input checks

@@ -8,7 +8,6 @@ bootstrap band over the records, reported as text, --json and a --plot (docs/fra
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import warnings
@@ -51,13 +50,14 @@ def add_parser(subparsers):
         scales='scale factors on every record: a comma list such as "0.5,1,1.5" or a range '
         '"START:STOP:N" of N evenly spaced values, ends included')
     sweep.add_run_arguments(w)
-    w.add_argument("--im", type=_checked(parse_im), default="PGA", metavar="IM",
+    w.add_argument("--im", type=converter("--im", _valid(parse_im)), default="PGA",
+                   metavar="IM",
                    help="intensity measure: PGA [g] (default), PGV [m/s], PGD [m], Sa(T) [g] "
                    "(5 %%-damped pseudo-spectral acceleration at the period T in s, e.g. "
                    "'Sa(1.0)'), or scale")
-    w.add_argument("--limit", default="overturned", metavar="LIMIT", type=_checked(
-        parse_limit, "--limit must be overturned, uplift=METRES or rotation=RADIANS (a "
-        "positive threshold)"), help="limit state: overturned (default), uplift=M (peak corner "
+    w.add_argument("--limit", default="overturned", metavar="LIMIT", type=converter(
+        "--limit", _valid(parse_limit), noun="overturned, uplift=METRES or rotation=RADIANS "
+        "(a positive threshold)"), help="limit state: overturned (default), uplift=M (peak corner "
         "uplift >= M metres) or rotation=RAD (peak rotation >= RAD radians); an overturned run "
         "exceeds every limit")
     w.add_argument("--bootstrap", type=converter("--bootstrap", int, lambda n: n >= 0, "be >= 0"),
@@ -74,16 +74,9 @@ def add_parser(subparsers):
     return w
 
 
-def _checked(parse, message=None):
-    """An argparse type: the text, once `parse` accepts it (else its error, or `message`)."""
-    def conv(text):
-        try:
-            parse(text)
-        except ValueError as e:
-            raise argparse.ArgumentTypeError(str(e) if message is None
-                                             else f"{message}, got {text!r}") from None
-        return text
-    return conv
+def _valid(parse):
+    """The text itself, once `parse` accepts it (a `converter` kind)."""
+    return lambda text: (parse(text), text)[1]
 
 
 # --------------------------------------------------------------------------------- run

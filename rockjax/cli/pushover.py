@@ -10,7 +10,7 @@ from rockjax._report import DERIVED_UNITS, pushover_table
 
 from ._common import (
     add_outputs,
-    add_plausibility_argument,
+    add_structure_argument,
     check_outputs,
     CLIError,
     converter,
@@ -36,8 +36,7 @@ def add_parser(subparsers):
         "the simplified (Eqs 13, 20) and exact (Eqs 13, 18) closed forms and the numerical "
         "pushover of the rigid body on two springs.",
     )
-    q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    add_plausibility_argument(q)
+    add_structure_argument(q)
     q.add_argument("--umax", type=positive_float("--umax"), metavar="M",
                    help="largest displacement [m] (default 0.99 u_overturn)")
     q.add_argument("--points", type=converter("--points", int, lambda n: n >= 2, "be at least 2"),

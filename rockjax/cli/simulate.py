@@ -15,7 +15,7 @@ from rockjax._report import record_info, record_line
 from ._common import (
     add_model_arguments,
     add_outputs,
-    add_plausibility_argument,
+    add_structure_argument,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
@@ -48,8 +48,7 @@ def add_parser(subparsers):
         "Free vibration: --u0 [--v0]. Ground motion: --record FILE (PEER AT2, two columns "
         "t a, or one column with --record-dt) [--units g|m/s2|cm/s2|gal|...] [--scale S].",
     )
-    m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    add_plausibility_argument(m)
+    add_structure_argument(m)
     m.add_argument("--u0", type=finite_float("--u0"), metavar="M", help="release displacement [m]")
     m.add_argument("--v0", type=finite_float("--v0"), default=0.0, metavar="V",
                    help="release velocity [m/s] (default 0)")

@@ -14,7 +14,7 @@ from rockjax._spectrum import frequency_parameter
 from ._common import (
     add_model_arguments,
     add_outputs,
-    add_plausibility_argument,
+    add_structure_argument,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
@@ -50,8 +50,7 @@ def add_parser(subparsers):
                        "or a range START:STOP:N")
     which.add_argument("--ratios", type=number_list("--ratios"), metavar="X",
                        help="the same as omega_p / p (rectangular: p t1), a list or a range")
-    q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    add_plausibility_argument(q)
+    add_structure_argument(q)
     add_model_arguments(q, "model (default rigid_body, the body's own equation)",
                         fidelity=False)
     q.set_defaults(model="rigid_body")

@@ -25,7 +25,7 @@ from rockjax._batch import DEFAULT_TAIL
 from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
-from rockjax._suite import expand_folders, RecordFile, unique_labels
+from rockjax._suite import expand_folders, RecordFile, split_record_units, unique_labels
 from rockjax._sweep import report_sweeps, write_csv
 
 from . import _distributed
@@ -51,7 +51,6 @@ from ._common import (
     RECORD_UNITS_METAVAR,
     save,
     scale_list,
-    split_record_units,
 )
 
 #: the library parameters that the options of `rockjax sweep` set (errors name the option)
@@ -234,12 +233,12 @@ def read_sweep(args):
     specs, skipped = expand_folders(specs)
     records = _read_records(specs, default_units, args.record_dt, args.check_plausible)
     try:
-        common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
+        grid = common_time_step([r.dt for r in records],
+                                names=[pathlib.Path(s.path).name for s in specs])
     except ValueError as e:
         raise CLIError(f"--record: {first_line(e)}") from None
     sweep = Sweep(structures, struct_labels, records, unique_labels([s.path for s in specs]),
                   np.asarray(args.scales, float), args.tail, args.t1, skipped)
-    grid = common_time_step([r.dt for r in records])
     n = max(min(r.dt * (r.npts - 1) + sweep.tail, sweep.t1 or math.inf) for r in records) / grid
     if not n <= MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error
         raise CLIError(

@@ -118,6 +118,18 @@ class Response(eqx.Module):
         return "\n".join([*lines, f"residual u    {out['residual_u']:.6g} m at t = "
                                    f"{out['t_end']:.6g} s"])
 
+    def to_csv(self, path):
+        """Write the time history of one run as CSV, one row per output time, header
+        `t_s,u_m,v_m_s,theta_rad,uplift_m` (`ts` [s], `u` [m], `v` [m/s], `theta` [rad],
+        `uplift` [m]); a batch: take a run first (`member`)."""
+        if self.batch_shape:
+            raise TypeError(f"to_csv writes one run; this is a batch of {self.batch_shape}: "
+                            "take one with member(index)")
+        cols = {"t_s": self.ts, "u_m": self.u, "v_m_s": self.v, "theta_rad": self.theta,
+                "uplift_m": self.uplift}
+        np.savetxt(path, np.column_stack([np.asarray(c) for c in cols.values()]), delimiter=",",
+                   header=",".join(cols), comments="", fmt="%.10g")
+
     def summary(self) -> dict | list:
         """The results as plain Python (SI units: m, s), for JSON: `peak_u` [m] and `t_peak`
         [s] (when |u| peaked, from the cubic Hermite interpolant of u, v on `ts`),

@@ -186,6 +186,14 @@ def frequency_parameter(structure) -> float:
     return math.sqrt(float(structure.W * structure.R_c / structure.I_O))
 
 
+def periods_at(structure, kind, x) -> np.ndarray:
+    """The pulse periods [s] (a rectangular pulse's durations) at the abscissae `x` of the
+    spectrum's plot, $\\omega_p/p = 2\\pi/(pT)$ or $p\\,t_1$ for a rectangular pulse
+    (the inverse of `OverturningSpectrum.x`)."""
+    p, x = frequency_parameter(structure), np.asarray(x, float)
+    return x / p if _pulses.KINDS.get(kind, kind) == "rectangular" else 2 * math.pi / (p * x)
+
+
 def _check_options(rtol, n_scan, max_ratio, t_free):
     if not (isinstance(rtol, (int, float)) and 1e-8 <= rtol <= 0.1):
         raise ParameterError(f"rtol must lie in [1e-8, 0.1], got {rtol!r}", param="rtol")

@@ -274,12 +274,16 @@ def write_csv(path, results, labels):
             w.writerows(res.csv_rows(lab))
 
 
+def status_totals(results) -> dict[str, int]:
+    """`SweepResult.status_counts` summed over several sweeps."""
+    return {k: sum(r.status_counts()[k] for r in results) for k in STATUS}
+
+
 def report_sweeps(results, labels, *, wall_time=None, processes=1, inputs=True) -> str:
     """`SweepResult.report` of sweeps of the same records and scales over several
     structures (`labels` their names, one column each); `wall_time` [s] (default: the
     sweeps' sum) and `processes` for the time line; `inputs`: begin with `report_inputs`."""
-    first, n_s = results[0], results[0].n_scales
-    counts = {k: sum(r.status_counts()[k] for r in results) for k in STATUS}
+    first, n_s, counts = results[0], results[0].n_scales, status_totals(results)
     n_runs = sum(r.n_runs for r in results)
     wall = sum(r.wall_time for r in results) if wall_time is None else wall_time
     failed = {k: v for k, v in counts.items() if STATUS[k] not in USABLE and v}

@@ -60,6 +60,21 @@ def test_report(free_run, column):
     assert over.report(column, model).splitlines()[-1].startswith("t_overturn    ")
 
 
+def test_to_csv(free_run, tmp_path):
+    """`Response.to_csv` (`rockjax simulate --out`): t, u, v, theta, uplift of one run,
+    the units in the header; a batch is refused."""
+    free_run.to_csv(tmp_path / "h.csv")
+    assert (tmp_path / "h.csv").read_text().splitlines()[0] == "t_s,u_m,v_m_s,theta_rad,uplift_m"
+    data = np.loadtxt(tmp_path / "h.csv", delimiter=",", skiprows=1)
+    assert data.shape == (4001, 5)
+    for i, f in enumerate(("ts", "u", "v", "theta", "uplift")):
+        np.testing.assert_allclose(data[:, i], np.asarray(getattr(free_run, f)), rtol=1e-9,
+                                   atol=1e-15)
+    batch = jax.tree_util.tree_map(lambda x: jnp.stack([x, x]), free_run)
+    with pytest.raises(TypeError, match="one run"):
+        batch.to_csv(tmp_path / "b.csv")
+
+
 def test_energy_conserved_between_impacts(free_run, column):
     res = free_run
     E = np.asarray(energy(column, res.u, res.v))

@@ -323,6 +323,18 @@ def test_spectrum_report():
                          "counted as survivors", "nan: nothing overturned up to 1000 g tan(alpha)"]
 
 
+def test_periods_at_inverts_the_abscissa(column):
+    """`periods_at` (`rockjax spectrum --ratios`): the periods whose `OverturningSpectrum.x`
+    are the ratios given, for each kind of pulse."""
+    from rockjax._spectrum import periods_at
+
+    p = rockjax._spectrum.frequency_parameter(column)
+    x = np.array([0.5, 2.0, 8.0])
+    np.testing.assert_allclose(p * periods_at(column, "rectangular", x), x, rtol=1e-14)
+    for kind in ("sine", "one_cosine"):
+        np.testing.assert_allclose(2 * np.pi / (p * periods_at(column, kind, x)), x, rtol=1e-14)
+
+
 def test_spectrum_bad_input(column):
     bad = [
         (dict(kind="square"), "kind"),

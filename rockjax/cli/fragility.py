@@ -16,7 +16,7 @@ import rockjax
 from rockjax._fragility import parse_im, parse_limit
 from rockjax._plotting import new_figure
 from rockjax._report import status_line
-from rockjax._sweep import write_csv
+from rockjax._sweep import status_totals, write_csv
 
 from . import sweep
 from ._common import add_outputs, check_outputs, CLIError, converter, model_info, model_line, save
@@ -119,7 +119,7 @@ def _print_report(args, sw, fit):
     sweep.print_inputs(sw)
     print(f"sweep         {sw.runs}: {len(sw.rec_labels)} record(s) x {len(sw.scales)} scale(s), "
           f"{sw.wall:.3g} s ({sw.n_runs / sw.wall:.3g} runs/s, compilation included)\n"
-          f"status        {status_line(sw.status_counts())}\n{fit.report()}")
+          f"status        {status_line(status_totals(sw.results))}\n{fit.report()}")
     for what, path in (("results", args.out), ("plot", args.plot)):
         if path:
             print(f"{what} written to {path}")

@@ -29,13 +29,10 @@ from ._common import (
     RECORD_FLAGS,
     record_units,
     RECORD_UNITS_METAVAR,
-    write_columns,
 )
 
 #: the library parameters that the options of `rockjax simulate` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "u0": "--u0", "v0": "--v0"}
-#: the --out CSV columns and their units (the header reads t_s,u_m,v_m_s,theta_rad,uplift_m)
-CSV_COLUMNS = {"t": "s", "u": "m", "v": "m_s", "theta": "rad", "uplift": "m"}
 #: output step [s] of a free-vibration run (a ground-motion run uses the record's step)
 _FREE_DT = 0.002
 
@@ -148,8 +145,7 @@ def run(args):
     if out["fidelity_warning"]:
         print(f"warning: {out['fidelity_warning']}", file=sys.stderr)
     if args.out:
-        write_columns(args.out, {k: np.asarray(getattr(res, "ts" if k == "t" else k))
-                                 for k in CSV_COLUMNS}, CSV_COLUMNS)
+        res.to_csv(args.out)
     if args.plot:
         _write_plot(args, s, res, gm, read)
     if args.json:

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 
 import rockjax
 from rockjax._plotting import new_figure
-from rockjax._spectrum import frequency_parameter
+from rockjax._spectrum import periods_at
 
 from ._common import (
     add_model_arguments,
@@ -61,20 +60,13 @@ def add_parser(subparsers):
     return q
 
 
-def _periods(args, s):
-    if args.periods is not None:
-        return np.asarray(args.periods)
-    p = frequency_parameter(s)
-    x = np.asarray(args.ratios)
-    return x / p if args.pulse == "rectangular" else 2 * math.pi / (p * x)
-
-
 def run(args):
     s = load_structure(args.structure, args.check_plausible)
     check_outputs(args)
     if not 1e-8 <= args.rtol <= 0.1:
         raise CLIError(f"--rtol must lie in [1e-8, 0.1], got {args.rtol}")
-    T = _periods(args, s)
+    T = (np.asarray(args.periods) if args.periods is not None
+         else periods_at(s, PULSES[args.pulse], args.ratios))
     sp = rockjax.overturning_spectrum(s, PULSES[args.pulse], T, model=args.model,
                                       impact=args.impact, r=args.r, rtol=args.rtol,
                                       progress=None if not args.json else False)

@@ -26,7 +26,7 @@ from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
 from rockjax._suite import expand_folders, RecordFile, split_record_units, unique_labels
-from rockjax._sweep import report_sweeps, write_csv
+from rockjax._sweep import report_sweeps, status_totals, write_csv
 
 from . import _distributed
 from ._common import (
@@ -220,10 +220,6 @@ class Sweep:
     def runs(self):
         return f"{self.n_runs} run{'s' if self.n_runs != 1 else ''}"
 
-    def status_counts(self):
-        counts = [r.status_counts() for r in self.results]
-        return {name: sum(c[name] for c in counts) for name in rockjax.STATUS}
-
 
 def read_sweep(args):
     """The sweep's inputs, read and checked (no run yet); the records' common time step is
@@ -294,7 +290,7 @@ def sweep_json(args, sweep):
     return {
         "n_runs": n_runs, "n_structures": len(sweep.structures),
         "n_records": len(sweep.rec_labels), "n_scales": len(sweep.scales),
-        "status_counts": sweep.status_counts(), "wall_time_s": wall,
+        "status_counts": status_totals(sweep.results), "wall_time_s": wall,
         "runs_per_s": n_runs / wall if wall > 0 else None, "processes": sweep.processes,
         "tail_s": sweep.tail, "t1": sweep.t1, "grid_dt_s": first.grid_dt, "model": args.model,
         "model_info": model_info(args), "method": args.method,

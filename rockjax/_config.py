@@ -105,3 +105,16 @@ def _user_level() -> int:
     while frame is not None and frame.f_code.co_filename.startswith(inside):
         frame, level = frame.f_back, level + 1
     return level
+
+
+def stack_versions() -> str:
+    """The versions of the JAX stack rockjax runs on, as "jax X, diffrax Y, ..." (one line)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    def of(pkg):
+        try:
+            return version(pkg)
+        except PackageNotFoundError:  # pragma: no cover - a broken environment
+            return "?"
+
+    return ", ".join(f"{pkg} {of(pkg)}" for pkg in ("jax", "diffrax", "equinox", "optax"))

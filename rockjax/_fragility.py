@@ -287,6 +287,10 @@ def _bootstrap_weights(rec_of_run, n_records, n_boot, rng):
     return (counts[:, rec_of_run] if unit == "records" else counts), unit
 
 
+#: standard normal quantiles of P = 10, 50 and 90 % (`FragilityResult.report`)
+_Z_10_50_90 = (-1.2815515655446004, 0.0, 1.2815515655446004)
+
+
 # ----------------------------------------------------------------------------- result
 @dataclasses.dataclass(frozen=True, eq=False)
 class FragilityResult:
@@ -392,6 +396,43 @@ class FragilityResult:
             "used": self.used.tolist(),
             "status": [[STATUS_NAMES[int(c)] for c in row] for row in self.status],
         }
+
+    def report(self) -> str:
+        """The fit as text: the model fitted and the runs it used, `median` and `beta` with
+        their bootstrap intervals, the IM at P = 10, 50 and 90 % and the resamples.
+
+        ```python
+        status = np.array([[0, 0, 1, 1], [0, 1, 0, 1], [0, 0, 0, 1]])  # 0 completed, 1 overturned
+        z = np.zeros(status.shape)  # 3 records x 4 scales; the peaks do not enter this fit
+        res = rockjax.SweepResult(rockjax.mcmanus_column(), records=[None] * 3,
+                                  labels=["a", "b", "c"], scales=[0.5, 1, 2, 4], peak_u=z,
+                                  peak_uplift=z, n_impacts=z, status=status, t_overturn=z,
+                                  t_end=z)
+        print(rockjax.fragility(res, im="scale", n_bootstrap=20).report())
+        ```
+        """
+        def interval(ci, unit=""):
+            return "" if ci is None else (f"  ({self.confidence:.0%} interval {ci[0]:.4g} to "
+                                          f"{ci[1]:.4g}{unit})")
+
+        failed = {k: v for k, v in self.n_failed.items() if v}
+        left = ", ".join(f"{k} {v}" for k, v in failed.items())
+        unit = f" {self.im_unit}" if self.im_unit != "-" else ""
+        beta = "0 (separated: a step at the median)" if self.separated else f"{self.beta:.4g}"
+        at = ", ".join(f"{self.median * np.exp(self.beta * z):.4g}" for z in _Z_10_50_90)
+        lines = [f"fit           P({self.limit} | {self.im}) = Phi(ln({self.im}/median)/beta), "
+                 f"maximum likelihood over the {self.n_used} runs that completed or overturned "
+                 f"({self.n_exceeded} reached the limit); "
+                 + (f"{sum(failed.values())} failed runs left out ({left})" if failed else
+                    "no failed runs"),
+                 f"median        {self.median:.4g}{unit}{interval(self.median_ci, unit)}",
+                 f"beta          {beta}{interval(self.beta_ci)}",
+                 f"quantiles     {self.im} at P = 10, 50, 90 %: {at}{unit}"]
+        if self.n_bootstrap:
+            kinds = ", ".join(f"{k} {v}" for k, v in self.bootstrap_counts.items() if v)
+            lines.append(f"bootstrap     {self.n_bootstrap} resamples of the {self.resampled} "
+                         f"(seed {self.seed}): {kinds}")
+        return "\n".join(lines)
 
     def plot(self, ax=None):
         """The fitted curve, the bootstrap band, the observed fractions (at each scale for

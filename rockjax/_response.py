@@ -95,6 +95,41 @@ class Response(eqx.Module):
         t_ot = float(self.t_overturn)
         return float(np.max(theta[ts <= t_ot] if np.isfinite(t_ot) else theta))
 
+    def report(self, structure, model) -> str:
+        """One run as text: status, peak |u| [m] and when, peak rotation [rad] (and over
+        `alpha_c`), peak uplift [m], impacts, and when it overturned or where it ended.
+
+        **Arguments:** `structure`, the `RockingStructure` run; `model`, the model it ran
+        with (a `rockjax.get_model` model, for the rotation: `peak_theta`).
+
+        ```python
+        s, model = rockjax.mcmanus_column(), rockjax.get_model("simplified")
+        res = rockjax.simulate(s, rockjax.FreeVibration(0.05), 2.0, model=model)
+        print(res.report(s, model))
+        ```
+        """
+        out, theta = _summary(self), self.peak_theta(structure, model)
+        lines = [f"status        {out['status']}",
+                 f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s",
+                 f"peak theta    {theta:.6g} rad = {theta / float(structure.alpha_c):.4g} alpha_c",
+                 f"peak uplift   {out['peak_uplift']:.6g} m", f"impacts       {out['n_impacts']}"]
+        if out["t_overturn"] is not None:
+            return "\n".join([*lines, f"t_overturn    {out['t_overturn']:.6g} s"])
+        return "\n".join([*lines, f"residual u    {out['residual_u']:.6g} m at t = "
+                                   f"{out['t_end']:.6g} s"])
+
+    def to_csv(self, path):
+        """Write the time history of one run as CSV, one row per output time, header
+        `t_s,u_m,v_m_s,theta_rad,uplift_m` (`ts` [s], `u` [m], `v` [m/s], `theta` [rad],
+        `uplift` [m]); a batch: take a run first (`member`)."""
+        if self.batch_shape:
+            raise TypeError(f"to_csv writes one run; this is a batch of {self.batch_shape}: "
+                            "take one with member(index)")
+        cols = {"t_s": self.ts, "u_m": self.u, "v_m_s": self.v, "theta_rad": self.theta,
+                "uplift_m": self.uplift}
+        np.savetxt(path, np.column_stack([np.asarray(c) for c in cols.values()]), delimiter=",",
+                   header=",".join(cols), comments="", fmt="%.10g")
+
     def summary(self) -> dict | list:
         """The results as plain Python (SI units: m, s), for JSON: `peak_u` [m] and `t_peak`
         [s] (when |u| peaked, from the cubic Hermite interpolant of u, v on `ts`),

@@ -31,6 +31,7 @@ from ._checks import check_one_structure, check_periods
 from ._config import ensure_x64
 from ._errors import ParameterError
 from ._execution import Execution
+from ._report import model_info, model_line
 from ._response import STATUS
 from ._structure import RockingStructure
 from ._sweep import failed_runs
@@ -62,7 +63,7 @@ class OverturningSpectrum:
     - `dt` [s]: each period's pulse sample step (`rockjax.pulses.pulse(kind, a, T,
       max_dt=dt)` reproduces a run), `t_end` [s] each run's end.
     - `n_runs`, `n_failed` (runs with status max_impacts or solver_failure, counted as
-      survivors), `wall_time` [s].
+      survivors), `wall_time` [s]; `impact` and `r` (None: Eq. 3) as given.
     """
 
     kind: str
@@ -81,6 +82,8 @@ class OverturningSpectrum:
     n_runs: int
     n_failed: int
     wall_time: float
+    impact: str = "paper"
+    r: float | None = None
 
     @property
     def x(self) -> np.ndarray:
@@ -128,6 +131,32 @@ class OverturningSpectrum:
                    header=",".join(f"{k}_{u}" for k, (_, u) in cols.items()), comments="",
                    fmt="%.10g")
 
+    def report(self) -> str:
+        """A text report: the pulse, the model, $p$ and $g\\tan\\alpha$, then one row per
+        period (in increasing order: period [s], abscissa, amplitude [m/s²], normalised,
+        mode, the amplitude that overturns without impact [m/s²]) and the runs.
+
+        ```python
+        s = rockjax.mcmanus_column()
+        sp = rockjax.overturning_spectrum(s, "sine", [0.5], n_scan=8, amplitude_rtol=0.05)
+        print(sp.report())
+        ```
+        """
+        x = "p t1" if self.kind == "rectangular" else "wp/p"
+        lines = [f"overturning spectrum, {self.kind} pulse "
+                 f"({model_line(model_info(self.model, self.impact, self.r))})",
+                 f"p = {self.p:.4g} rad/s, g tan(alpha) = {self.g_tan_alpha:.4g} m/s2, rtol "
+                 f"{self.rtol:g}", f"{'period [s]':>11} {x:>7} {'a [m/s2]':>10} "
+                 f"{'a/(g tan a)':>12}  {'mode':<13}{'no impact [m/s2]':>17}"]
+        lines += [f"{self.periods[i]:11.4g} {self.x[i]:7.3f} {self.amplitude[i]:10.4g} "
+                  f"{self.normalised[i]:12.4f}  {self.mode[i]:<13}"
+                  f"{self.amplitude_no_impact[i]:17.4g}" for i in np.argsort(self.periods)]
+        lines.append(f"{self.n_runs} runs in {self.wall_time:.2f} s; {self.n_failed} failed "
+                     "runs (max_impacts, solver_failure) counted as survivors")
+        if np.any(np.isnan(self.amplitude)):
+            lines.append("nan: nothing overturned up to 1000 g tan(alpha)")
+        return "\n".join(lines)
+
     def plot(self, ax=None, label=None):
         """amplitude / ($g\\tan\\alpha$) against `x` (matplotlib; returns the axes): the
         lowest overturning amplitude, and the no-impact mode where it is higher."""
@@ -155,6 +184,14 @@ class OverturningSpectrum:
 def frequency_parameter(structure) -> float:
     """Housner's frequency parameter $p = \\sqrt{W R_c / I_O}$ [rad/s]."""
     return math.sqrt(float(structure.W * structure.R_c / structure.I_O))
+
+
+def periods_at(structure, kind, x) -> np.ndarray:
+    """The pulse periods [s] (a rectangular pulse's durations) at the abscissae `x` of the
+    spectrum's plot, $\\omega_p/p = 2\\pi/(pT)$ or $p\\,t_1$ for a rectangular pulse
+    (the inverse of `OverturningSpectrum.x`)."""
+    p, x = frequency_parameter(structure), np.asarray(x, float)
+    return x / p if _pulses.KINDS.get(kind, kind) == "rectangular" else 2 * math.pi / (p * x)
 
 
 def _check_options(rtol, n_scan, max_ratio, t_free):
@@ -396,8 +433,9 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body",
     finally:
         if bar is not None:
             bar.close()
-    return _result(kind, model, T, search, p, gta, float(rtol), runner, n_runs, n_failed,
-                   time.perf_counter() - start)
+    return dataclasses.replace(
+        _result(kind, model, T, search, p, gta, float(rtol), runner, n_runs, n_failed,
+                time.perf_counter() - start), impact=impact, r=None if r is None else float(r))
 
 
 def _result(kind, model, T, search, p, gta, rtol, runner, n_runs, n_failed, wall):

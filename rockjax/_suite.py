@@ -8,6 +8,7 @@ import dataclasses
 import pathlib
 
 from ._errors import ParameterError
+from ._units import UNITS
 
 #: the files a folder gives (by suffix, case-insensitive); others are skipped
 RECORD_SUFFIXES = (".at2", ".dat", ".txt", ".csv", ".acc", ".asc", ".gz",  # .asc: ESM
@@ -22,6 +23,21 @@ class RecordFile:
     path: str
     units: str | None = None
     folder: str | None = None
+
+
+def split_record_units(text):
+    """(path, units or None) of a record named "FILE:UNITS": a trailing `:UNIT` naming a
+    unit of acceleration of `rockjax.UNITS` (`:g`, `:m/s2`, `:cm/s2`, `:gal`, also
+    `:m/s^2`, `:mps2`, ...) names the record's units (canonical name); any other colon
+    belongs to the path, and so does the suffix when the whole text names an existing
+    file."""
+    head, sep, tail = str(text).rpartition(":")
+    units = None
+    if sep and UNITS.kind_of(tail) == "acceleration":
+        units = UNITS.normalize(tail, "acceleration")
+    if units is None or not head or pathlib.Path(text).exists():
+        return str(text), None
+    return head, units
 
 
 def _folder_files(spec: RecordFile):

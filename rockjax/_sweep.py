@@ -27,7 +27,8 @@ from ._distributed import Processes
 from ._errors import ParameterError
 from ._excitation import GroundMotion
 from ._fidelity import warn_sdof_lift_off
-from ._records import G_STANDARD, read_record, Record
+from ._records import common_time_step, G_STANDARD, read_record, Record
+from ._report import model_info, model_line, record_info, status_line
 from ._status import STATUS, STATUS_NAMES
 from ._structure import RockingStructure
 from .models import get_model
@@ -42,8 +43,6 @@ CSV_COLUMNS = ("structure", "record", "scale", "peak_u_m", "peak_uplift_m", "n_i
                "status", "t_overturn_s", "t_end_s", "record_file", "record_units",
                "record_units_from", "record_dt_s", "record_npts", "record_duration_s",
                "record_pga_g", "model", "impact", "r", "method")
-#: the models whose impacts are their landings (no SDOF impact rule)
-_BODY_MODELS = ("rigid_body", "two_spring_2dof")
 #: a sweep's batches are padded to a multiple of this many runs (`_run`)
 _VECTOR = 8
 #: simulate_batch arguments that `sweep` sets itself
@@ -178,8 +177,8 @@ class SweepResult:
         structure's) and method."""
         names, opts = self.status_names(), self.options
         r = "Eq 3" if opts.get("r") is None else repr(float(opts["r"]))
-        impact = "landings" if self.model_name in _BODY_MODELS else self.impact
-        tail = [self.model_name, impact, r, opts.get("method", "rk4")]
+        tail = [self.model_name, model_info(self.model_name, self.impact)["impact"], r,
+                opts.get("method", "rk4")]
         recs = [_provenance(rec) for rec in self.records]
         for i, scale in enumerate(self.scales):
             for j, (lab, rec) in enumerate(zip(self.labels, recs)):
@@ -192,6 +191,58 @@ class SweepResult:
     def status_names(self) -> np.ndarray:
         """The status of each run as text, (n_records, n_scales)."""
         return np.vectorize(STATUS_NAMES.__getitem__, otypes=[str])(self.status)
+
+    @property
+    def grid_dt(self) -> float:
+        """The records' common time step [s] (`rockjax.common_time_step`), the grid of
+        every run."""
+        return common_time_step([float(r.dt) for r in self.records])
+
+    def record_info(self) -> list[dict]:
+        """Per record: its `label`, what was read (file, units and where they came from,
+        `dt_s`, `n_points`, `duration_s` [s], `pga_m_s2`, `pga_g`) and `t_end_s`, the end
+        of its runs [s] (its end plus `tail`, at most `t1`)."""
+        out = []
+        for lab, rec in zip(self.labels, self.records):
+            info = record_info(rec)
+            end = info["dt_s"] * (info["n_points"] - 1) + (self.tail or 0.0)
+            out.append({"label": lab, **{k: v for k, v in info.items()
+                                         if k not in ("scale", "scaled_pga_g")},
+                        "t_end_s": end if self.t1 is None else min(end, self.t1)})
+        return out
+
+    def report_inputs(self) -> str:
+        """What produced the results, as text: one line per record (units, dt, points,
+        duration, PGA [g], end of its runs), the grid and the model."""
+        lines = []
+        for i in self.record_info():
+            src = f" ({i['units_from']})" if i["units_from"] else ""
+            lines.append(f"record        {i['label']}: units {i['units_in_file']}{src}, dt "
+                         f"{i['dt_s']:g} s, {i['n_points']} points, {i['duration_s']:g} s, PGA "
+                         f"{i['pga_g']:.4g} g, run to {i['t_end_s']:g} s")
+        cap = "" if self.t1 is None else f", at most t1 = {self.t1:g} s"
+        dts = ", ".join(f"{d:g}" for d in sorted({float(r.dt) for r in self.records}))
+        method, opts = self.options.get("method", "rk4"), self.options
+        substeps = f" ({opts['substeps']} substeps)" if method == "rk4" and opts.get(
+            "substeps") else ""
+        info = model_info(self.model_name, self.impact, opts.get("r"))
+        return "\n".join([*lines, f"grid          {self.grid_dt:g} s (record steps {dts} s, "
+                          f"resampled exactly); each run to its record's end + tail "
+                          f"{self.tail or 0.0:g} s{cap}",
+                          f"model         {model_line(info)}, {method}{substeps}"])
+
+    def report(self, label="structure") -> str:
+        """A text report: `report_inputs`, the runs and their time, the runs per status,
+        the fraction overturned (of the runs that completed or overturned) and the failed
+        runs, per scale (`label` heads the column).
+
+        ```python
+        record = rockjax.datasets.synthetic_ground_motion(duration=2.0, dt=0.01, pga=3.0)
+        res = rockjax.sweep(rockjax.mcmanus_column(), [record], [0.5, 2.0], substeps=2)
+        print(res.report())
+        ```
+        """
+        return report_sweeps([self], [label])
 
     def plot(self, title=None, label="structure"):
         """Peak |u| against the scale (one line per record; overturned runs as x at
@@ -221,6 +272,49 @@ def write_csv(path, results, labels):
         w.writerow(CSV_COLUMNS)
         for res, lab in zip(results, labels):
             w.writerows(res.csv_rows(lab))
+
+
+def status_totals(results) -> dict[str, int]:
+    """`SweepResult.status_counts` summed over several sweeps."""
+    return {k: sum(r.status_counts()[k] for r in results) for k in STATUS}
+
+
+def report_sweeps(results, labels, *, wall_time=None, processes=1, inputs=True) -> str:
+    """`SweepResult.report` of sweeps of the same records and scales over several
+    structures (`labels` their names, one column each); `wall_time` [s] (default: the
+    sweeps' sum) and `processes` for the time line; `inputs`: begin with `report_inputs`."""
+    first, n_s, counts = results[0], results[0].n_scales, status_totals(results)
+    n_runs = sum(r.n_runs for r in results)
+    wall = sum(r.wall_time for r in results) if wall_time is None else wall_time
+    failed = {k: v for k, v in counts.items() if STATUS[k] not in USABLE and v}
+    n_over, n_used = counts["overturned"], n_runs - sum(failed.values())
+    procs = f", {processes} processes" if processes > 1 else ""
+    rate = f"{n_runs / wall:.3g}" if wall > 0 else "-"
+    lines = [first.report_inputs()] if inputs else []
+    lines += [f"sweep         {n_runs} run{'s' if n_runs != 1 else ''}: {len(results)} "
+              f"structure(s) x {first.n_records} record(s) x {n_s} scale(s)",
+              f"time          {wall:.3g} s ({rate} runs/s, compilation included{procs})",
+              f"status        {status_line(counts)}"]
+    share = f"{n_over / n_used:.1%}" if n_used else "-"
+    if failed:
+        lines.append(f"overturned    {n_over} of the {n_used} runs that completed or overturned "
+                     f"({share}); {n_runs - n_used} failed runs left out ({status_line(failed)})")
+    else:
+        lines.append(f"overturned    {n_over} of {n_runs} ({share})")
+    width = max(8, *(len(lab) + 2 for lab in labels))
+    head = f"{'scale':>10}" + "".join(f"{lab:>{width}}" for lab in labels)
+    lines += ["fraction overturned by scale (of the runs that completed or overturned):", head]
+    fractions = [r.fraction_overturned() for r in results]
+    for i in range(n_s) if n_s <= 25 else [*range(12), None, *range(n_s - 12, n_s)]:
+        lines.append(f"{'...':>10}" if i is None else f"{first.scales[i]:>10.4g}" + "".join(
+            f"{'-' if np.isnan(x := f[i]) else f'{float(x):.3f}':>{width}}" for f in fractions))
+    if failed:
+        by_scale = [r.failed_by_scale() for r in results]
+        lines += ["failed runs by scale (max_impacts, solver_failure; left out of the "
+                  "fractions):", head]
+        lines += [f"{scale:>10.4g}" + "".join(f"{int(b[i]):>{width}d}" for b in by_scale)
+                  for i, scale in enumerate(first.scales) if any(b[i] for b in by_scale)]
+    return "\n".join(lines)
 
 
 def _unique(labels):

@@ -430,3 +430,23 @@ def test_cli_help():
     assert "fragility" in out
     rc, _, err = _main(["fragility", "--record", "x.AT2"])
     assert rc == 2 and "the following arguments are required: --scales" in err
+
+
+def test_report(fit_pga):
+    """`FragilityResult.report` (the text of `rockjax fragility`): the fit, the median and
+    beta with their intervals, the IM at P = 10, 50, 90 % and the resamples."""
+    f, lines = fit_pga, fit_pga.report().splitlines()
+    assert lines[0].startswith(f"fit           P(overturned | PGA) = Phi(ln(PGA/median)/beta), "
+                               f"maximum likelihood over the {f.n_used} runs")
+    assert f"({f.n_exceeded} reached the limit); " in lines[0]
+    n_failed = sum(f.n_failed.values())
+    assert n_failed > 0 and lines[0].endswith(
+        f"{n_failed} failed runs left out (max_impacts {f.n_failed['max_impacts']})")
+    lo, hi = f.median_ci
+    assert lines[1] == f"median        {f.median:.4g} g  (90% interval {lo:.4g} to {hi:.4g} g)"
+    assert lines[2].startswith(f"beta          {f.beta:.4g}  (90% interval ")
+    q = [f.median * np.exp(f.beta * z) for z in (-1.2815515655446004, 0, 1.2815515655446004)]
+    np.testing.assert_allclose(f.probability(np.array(q)), [0.1, 0.5, 0.9], rtol=1e-9)
+    assert lines[3] == ("quantiles     PGA at P = 10, 50, 90 %: "
+                        + ", ".join(f"{x:.4g}" for x in q) + " g")
+    assert lines[4].startswith("bootstrap     300 resamples of the records (seed 0): fit ")

@@ -43,6 +43,38 @@ def test_free_vibration_basic(free_run, column):
     np.testing.assert_allclose(res.uplift, rockjax.uplift(column, res.u), atol=1e-15)
 
 
+def test_report(free_run, column):
+    """`Response.report` (the text of `rockjax simulate`): status, peaks, impacts and the
+    residual displacement of a run that did not overturn."""
+    res, model = free_run, rockjax.get_model("simplified")
+    out, theta = res.summary(), res.peak_theta(column, model)
+    lines = res.report(column, model).splitlines()
+    assert lines == [
+        "status        completed",
+        f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s",
+        f"peak theta    {theta:.6g} rad = {theta / float(column.alpha_c):.4g} alpha_c",
+        f"peak uplift   {out['peak_uplift']:.6g} m",
+        f"impacts       {out['n_impacts']}",
+        f"residual u    {out['residual_u']:.6g} m at t = 4 s"]
+    over = simulate(column, FreeVibration(0.99 * float(column.u_overturn), 1.0), 2.0)
+    assert over.report(column, model).splitlines()[-1].startswith("t_overturn    ")
+
+
+def test_to_csv(free_run, tmp_path):
+    """`Response.to_csv` (`rockjax simulate --out`): t, u, v, theta, uplift of one run,
+    the units in the header; a batch is refused."""
+    free_run.to_csv(tmp_path / "h.csv")
+    assert (tmp_path / "h.csv").read_text().splitlines()[0] == "t_s,u_m,v_m_s,theta_rad,uplift_m"
+    data = np.loadtxt(tmp_path / "h.csv", delimiter=",", skiprows=1)
+    assert data.shape == (4001, 5)
+    for i, f in enumerate(("ts", "u", "v", "theta", "uplift")):
+        np.testing.assert_allclose(data[:, i], np.asarray(getattr(free_run, f)), rtol=1e-9,
+                                   atol=1e-15)
+    batch = jax.tree_util.tree_map(lambda x: jnp.stack([x, x]), free_run)
+    with pytest.raises(TypeError, match="one run"):
+        batch.to_csv(tmp_path / "b.csv")
+
+
 def test_energy_conserved_between_impacts(free_run, column):
     res = free_run
     E = np.asarray(energy(column, res.u, res.v))

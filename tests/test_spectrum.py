@@ -300,6 +300,41 @@ def test_spectrum_plot(rectangular_spectrum, tmp_path):
     assert (tmp_path / "s.png").stat().st_size > 1000
 
 
+def test_spectrum_report():
+    """`OverturningSpectrum.report` (the text of `rockjax spectrum`): the model line, one
+    row per period in increasing order, the runs, and a note where nothing overturned."""
+    nan = float("nan")
+    sp = rockjax.OverturningSpectrum(
+        kind="one_sine", model="simplified", periods=np.array([1.0, 0.5]),
+        amplitude=np.array([nan, 3.0]), bracket=np.array([[nan, nan], [2.9, 3.1]]),
+        mode=("none", "after impact"), amplitude_no_impact=np.array([nan, 4.0]),
+        bracket_no_impact=np.array([[nan, nan], [3.9, 4.1]]), p=2.0, g_tan_alpha=2.5,
+        rtol=1e-3, dt=np.array([0.01, 0.005]), t_end=np.array([11.0, 10.5]), n_runs=96,
+        n_failed=2, wall_time=1.234, impact="after_uplift", r=0.8)
+    lines = sp.report().splitlines()
+    assert lines[:2] == [
+        "overturning spectrum, one_sine pulse (simplified model, impact rule after_uplift, r 0.8)",
+        "p = 2 rad/s, g tan(alpha) = 2.5 m/s2, rtol 0.001"]
+    assert lines[2].split() == ["period", "[s]", "wp/p", "a", "[m/s2]", "a/(g", "tan", "a)",
+                                "mode", "no", "impact", "[m/s2]"]
+    assert lines[3].split() == ["0.5", "6.283", "3", "1.2000", "after", "impact", "4"]
+    assert lines[4].split() == ["1", "3.142", "nan", "nan", "none", "nan"]
+    assert lines[5:] == ["96 runs in 1.23 s; 2 failed runs (max_impacts, solver_failure) "
+                         "counted as survivors", "nan: nothing overturned up to 1000 g tan(alpha)"]
+
+
+def test_periods_at_inverts_the_abscissa(column):
+    """`periods_at` (`rockjax spectrum --ratios`): the periods whose `OverturningSpectrum.x`
+    are the ratios given, for each kind of pulse."""
+    from rockjax._spectrum import periods_at
+
+    p = rockjax._spectrum.frequency_parameter(column)
+    x = np.array([0.5, 2.0, 8.0])
+    np.testing.assert_allclose(p * periods_at(column, "rectangular", x), x, rtol=1e-14)
+    for kind in ("sine", "one_cosine"):
+        np.testing.assert_allclose(2 * np.pi / (p * periods_at(column, kind, x)), x, rtol=1e-14)
+
+
 def test_spectrum_bad_input(column):
     bad = [
         (dict(kind="square"), "kind"),

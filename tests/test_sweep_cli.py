@@ -21,6 +21,7 @@ from conftest import run_cli
 from test_records import synthetic, write_at2, write_one_column, write_two_column
 
 import rockjax
+from rockjax._sweep import report_sweeps
 from rockjax.cli import main
 from rockjax.cli._common import parameter_message, scale_list as _scales, split_record_units
 from rockjax.cli.sweep import FLAGS
@@ -419,3 +420,41 @@ def test_fractions_unit():
                               peak_uplift=z, n_impacts=z, status=status, t_overturn=z, t_end=z)
     assert res.to_dict()["fraction_overturned"] == [0.0, 0.5, None]
     assert res.failed_by_scale().tolist() == [1, 1, 3]
+
+
+def test_sweep_report_unit():
+    """`SweepResult.report` (the text of `rockjax sweep`): the records, their grid and the
+    model, the counts, the fractions of the runs that completed or overturned (``-`` where
+    every run failed) and the failed runs by scale; no simulation."""
+    status = np.array([[0, 1, 2], [2, 0, 3], [0, 3, 2]])  # (n_records, n_scales)
+    z = np.zeros(status.shape)
+    recs = [rockjax.Record(dt=dt, accel=np.linspace(0, 1.0, n), source=f"/x/{lab}.AT2",
+                           units_in_file="g", units_source="file header")
+            for dt, n, lab in ((0.01, 101, "a"), (0.02, 51, "b"), (0.005, 11, "c"))]
+    res = rockjax.SweepResult(structure=rockjax.mcmanus_column(), records=recs,
+                              labels=["a", "b", "c"], scales=[1.0, 2.0, 3.0], peak_u=z,
+                              peak_uplift=z, n_impacts=z, status=status, t_overturn=z, t_end=z,
+                              model="rigid_body", tail=2.0, t1=2.5, wall_time=2.0,
+                              options={"method": "rk4", "substeps": 4, "r": 0.9})
+    assert res.grid_dt == 0.005
+    info = res.record_info()
+    assert [i["t_end_s"] for i in info] == pytest.approx([2.5, 2.5, 2.05])
+    assert info[0]["pga_g"] == pytest.approx(1.0 / rockjax.G_STANDARD)
+    lines = res.report(label="col").splitlines()
+    assert lines[0] == ("record        a: units g (file header), dt 0.01 s, 101 points, 1 s, "
+                        "PGA 0.102 g, run to 2.5 s")
+    assert lines[3] == ("grid          0.005 s (record steps 0.005, 0.01, 0.02 s, resampled "
+                        "exactly); each run to its record's end + tail 2 s, at most t1 = 2.5 s")
+    assert lines[4] == ("model         rigid_body model, impacts at landings (Eqs 2-3), r 0.9, "
+                        "rk4 (4 substeps)")
+    assert lines[5:8] == [
+        "sweep         9 runs: 1 structure(s) x 3 record(s) x 3 scale(s)",
+        "time          2 s (4.5 runs/s, compilation included)",
+        "status        completed 3, overturned 1, max_impacts 3, solver_failure 2"]
+    assert lines[8] == ("overturned    1 of the 4 runs that completed or overturned (25.0%); 5 "
+                        "failed runs left out (max_impacts 3, solver_failure 2)")
+    assert lines[10:14] == ["     scale     col", "         1   0.000", "         2   0.500",
+                            "         3       -"]
+    assert lines[15:] == ["     scale     col", "         1       1", "         2       1",
+                          "         3       3"]
+    assert "2 processes" in report_sweeps([res, res], ["p", "q"], wall_time=1.0, processes=2)

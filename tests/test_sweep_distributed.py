@@ -27,6 +27,7 @@ import pytest
 from conftest import REPO
 from test_records import synthetic, write_at2, write_two_column
 
+import rockjax
 from rockjax.cli import main
 
 #: seconds a launch may take before its processes are killed (a loaded 2-core machine)
@@ -286,6 +287,27 @@ def test_coordinator_port_taken(tmp_path, monkeypatch):
         port = s.getsockname()[1]
         rc, err = _main(["sweep", "--record", str(rec), *_flags(port, 2, 0, 1)])
     _one_line(rc, err, rf"--coordinator 127\.0\.0\.1:{port}: process 0 cannot listen on port")
+
+
+def test_processes_start_checks_the_coordinator_first():
+    """`rockjax.Processes.start`: a bad address, a port process 0 cannot listen on and a
+    coordinator that never answers are `ParameterError`s naming `coordinator` (its value
+    too), raised before JAX is asked to connect."""
+    from rockjax._distributed import NoCoordinator
+
+    with pytest.raises(rockjax.ParameterError, match="must be HOST:PORT") as e:
+        rockjax.Processes.start("nohost", 2, 1, timeout=1)
+    assert e.value.param == "coordinator"
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        with pytest.raises(rockjax.ParameterError, match="process 0 cannot listen") as e:
+            rockjax.Processes.start(f"127.0.0.1:{port}", 2, 0, timeout=1)
+    assert e.value.param == "coordinator" and e.value.value == f"127.0.0.1:{port}"
+    with pytest.raises(NoCoordinator, match="no coordinator answered within 0.5 s"):
+        rockjax.Processes.start(f"127.0.0.1:{_free_port()}", 2, 1, timeout=0.5)
+    assert not rockjax.Processes().active and rockjax.Processes().stop() is None
 
 
 def test_jax_already_started(tmp_path, monkeypatch):

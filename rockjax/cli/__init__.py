@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import sys
 
+import rockjax
 from rockjax._cache import enable_compile_cache
+from rockjax._config import stack_versions
 
 from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
 from ._common import CLIError, COMMON_FLAGS, error_text, EXIT_USAGE, Parser
@@ -25,26 +27,11 @@ def flags(command):
     return getattr(module, "FLAGS", COMMON_FLAGS)
 
 
-def _version():
-    """rockjax's version, with the versions of the JAX stack it runs on."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    import rockjax
-
-    def of(pkg):
-        try:
-            return version(pkg)
-        except PackageNotFoundError:  # pragma: no cover - a broken environment
-            return "?"
-
-    stack = ", ".join(f"{pkg} {of(pkg)}" for pkg in ("jax", "diffrax", "equinox", "optax"))
-    return f"rockjax {rockjax.__version__} ({stack})"
-
-
 def build_parser():
     p = Parser(prog="rockjax", description="Differentiable simulator of rigid structures "
                "rocking on a two-spring foundation (SI units throughout).")
-    p.add_argument("--version", action="version", version=_version())
+    p.add_argument("--version", action="version",
+                   version=f"rockjax {rockjax.__version__} ({stack_versions()})")
     p.add_argument(
         "--no-compile-cache", dest="compile_cache", action="store_false",
         help="do not use JAX's persistent compilation cache (default: on, in "
@@ -72,8 +59,6 @@ def main(argv=None, *, compile_cache=None):
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_USAGE
-    import rockjax
-
     # float64 and every core, before any computation (a no-op for the device count when
     # the caller's JAX has already run, e.g. main([...]) in a notebook)
     rockjax.configure()

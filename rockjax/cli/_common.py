@@ -14,6 +14,8 @@ import rockjax
 from rockjax._cache import compile_cache_dir, COMPILE_CACHE_ENV  # noqa: F401 (re-exported)
 from rockjax._checks import check_r
 from rockjax._fidelity import sdof_lift_off_message
+from rockjax._report import model_info as _model_info, model_line  # noqa: F401 (re-exported)
+from rockjax._suite import split_record_units  # noqa: F401 (re-exported)
 
 EXIT_USAGE = 2
 #: the longest run the CLI accepts, in output samples or record steps
@@ -23,8 +25,6 @@ _MAX_SCALES = 1_000_000
 #: where the --model help sends the user
 MODEL_GUIDE = ("which model for which scene: docs/models.md (the paper's SDOF models "
                "over-predict a body rocking under ground motion; rigid_body does not)")
-#: the models whose impacts are their landings, not the SDOF impact rule
-BODY_MODELS = ("rigid_body", "two_spring_2dof")
 #: the library parameters that most commands set, and the option that sets each; a command
 #: adds its own (`FLAGS` in its module)
 COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t1",
@@ -34,11 +34,6 @@ COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t
 RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale"}
 #: the units of acceleration a record may be in (`rockjax.UNITS`), for --units' help
 RECORD_UNITS_METAVAR = "{" + ",".join(rockjax.UNITS["acceleration"]) + "}"
-#: the units of the derived quantities of a structure (`derived_table`, pushover --json)
-DERIVED_UNITS = {"W": "N", "H_c": "m", "R_c": "m", "alpha_c": "rad", "R_e": "m",
-                 "alpha_e": "rad", "R_b": "m", "alpha_b": "rad", "delta_0": "m",
-                 "theta_crit": "rad", "u_crit": "m", "K1": "N/m", "P_crit": "N",
-                 "P_crit2": "N", "u_overturn": "m", "restitution": "-"}
 #: the fidelity warning's advice in CLI syntax
 _FIDELITY_ADVICE = ("use --model rigid_body (the body's own one-DOF equation, about as fast) "
                     "or two_spring_2dof. See docs/models.md; silence with "
@@ -61,16 +56,19 @@ def first_line(e):
 
 # ------------------------------------------------------------------ argument converters
 def converter(option, kind=float, test=None, must=None, noun=None):
-    """The one factory of argparse types: the text as `kind` (float or int), which must pass
-    `test` (else "OPTION must MUST, got X": the integer read, or the text of a number);
-    text that is no number: "OPTION must be NOUN" (default "an integer" or "a number")."""
-    noun = noun or ("an integer" if kind is int else "a number")
+    """The one factory of argparse types: the text as `kind` (float, int, or a parser that
+    raises ValueError), which must pass `test` (else "OPTION must MUST, got X": the integer
+    read, or the text); text that `kind` refuses: "OPTION must be NOUN, got TEXT" (default
+    "an integer" or "a number"; a parser's own message when it has no `noun`)."""
+    if noun is None and kind in (int, float):
+        noun = "an integer" if kind is int else "a number"
 
     def conv(text):
         try:
             x = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{option} must be {noun}, got {text!r}") from None
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(
+                str(e) if noun is None else f"{option} must be {noun}, got {text!r}") from None
         if test is not None and not test(x):
             got = x if kind is int else repr(text)
             raise argparse.ArgumentTypeError(f"{option} must {must}, got {got}")
@@ -149,20 +147,6 @@ def record_units(text):
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def split_record_units(text):
-    """(path, units or None) of a `--record` value: a trailing `:UNIT` naming a unit of
-    acceleration of `rockjax.UNITS` (`:g`, `:m/s2`, `:cm/s2`, `:gal`, also `:m/s^2`,
-    `:mps2`, ...) names the record's units (canonical name); any other colon belongs to the
-    path, and so does the suffix when the whole text names an existing file."""
-    head, sep, tail = str(text).rpartition(":")
-    units = None
-    if sep and rockjax.UNITS.kind_of(tail) == "acceleration":
-        units = rockjax.UNITS.normalize(tail, "acceleration")
-    if units is None or not head or pathlib.Path(text).exists():
-        return str(text), None
-    return head, units
-
-
 # ----------------------------------------------------------------- shared arguments
 def add_model_arguments(parser, model_help, fidelity=True):
     """--model (every model of the ladder, from `rockjax.MODELS`), --r and --impact, and
@@ -187,6 +171,13 @@ def add_outputs(parser, plot, out=None, json="print one JSON object and nothing 
         parser.add_argument("--out", default=out_default, metavar="FILE.csv", help=out)
     parser.add_argument("--plot", metavar="FILE.png", help=plot)
     parser.add_argument("--json", action="store_true", help=json)
+
+
+def add_structure_argument(parser):
+    """--structure FILE.toml (one; default Table 1) and --no-plausibility-check."""
+    parser.add_argument("--structure", metavar="FILE.toml",
+                        help="structure file (default: Table 1)")
+    add_plausibility_argument(parser)
 
 
 # ------------------------------------------------------------------------ input checks
@@ -255,48 +246,8 @@ def fidelity_note(args, structure, forced, peak_u):
 
 
 def model_info(args):
-    """The model, impact rule and restitution behind a CLI result (for text and JSON); the
-    body models impact at their landings (`--impact` does not apply to them)."""
-    impact = "landings" if args.model in BODY_MODELS else args.impact
-    return {"model": args.model, "impact": impact, "r": "Eq 3" if args.r is None else args.r}
-
-
-def model_line(info):
-    """`model_info` as one line of text."""
-    r = info["r"] if isinstance(info["r"], str) else f"{info['r']:g}"
-    if info["impact"] == "landings":
-        return f"{info['model']} model, impacts at landings (Eqs 2-3), r {r}"
-    return f"{info['model']} model, impact rule {info['impact']}, r {r}"
-
-
-def record_info(record, scale=1.0):
-    """What was read from a record: file, units (and where they came from), dt, points,
-    duration, PGA and the scale applied, as plain Python (SI units, PGA also in g)."""
-    pga, g = float(record.pga), rockjax.G_STANDARD
-    return {"file": str(record.source), "units_in_file": record.units_in_file,
-            "units_from": getattr(record, "units_source", None), "dt_s": float(record.dt),
-            "n_points": int(record.npts), "duration_s": float(record.dt * (record.npts - 1)),
-            "pga_m_s2": pga, "pga_g": pga / g, "scale": float(scale),
-            "scaled_pga_g": float(scale) * pga / g}
-
-
-def record_line(info):
-    """`record_info` as one line of text."""
-    src = f" ({info['units_from']})" if info.get("units_from") else ""
-    return (
-        f"{pathlib.Path(info['file']).name}: units {info['units_in_file']}{src}, "
-        f"dt {info['dt_s']:g} s, {info['n_points']} points, {info['duration_s']:g} s, "
-        f"PGA {info['pga_g']:.4g} g x scale {info['scale']:g} = {info['scaled_pga_g']:.4g} g"
-    )
-
-
-def derived_table(derived):
-    """The derived quantities of a structure as a text table (angles also in degrees)."""
-    lines = [f"{'quantity':<14}{'value':>14}  unit"]
-    for k, unit in DERIVED_UNITS.items():
-        extra = f"  ({derived[k + '_deg']:.4f} deg)" if k + "_deg" in derived else ""
-        lines.append(f"{k:<14}{derived[k]:>14.6g}  {unit}{extra}")
-    return "\n".join(lines)
+    """`rockjax._report.model_info` of --model, --impact and --r."""
+    return _model_info(args.model, args.impact, args.r)
 
 
 # ------------------------------------------------------- library errors in CLI syntax

@@ -1,5 +1,6 @@
-"""`jax.distributed` for the command line: the flags, starting and stopping the processes
-(the split of the runs and the gathers are `rockjax.Processes`, used by `rockjax.sweep`).
+"""`jax.distributed` for the command line: the flags, and the processes started and stopped
+in the command's terms (`rockjax.Processes.start` connects them; the split of the runs and
+the gathers are `rockjax.Processes`, used by `rockjax.sweep`).
 
 A plain command never connects anywhere. Only `--distributed` (JAX reads the cluster's
 environment: SLURM, Open MPI, ...) or the three flags `--coordinator`, `--num-processes`
@@ -15,17 +16,13 @@ import contextlib
 import dataclasses
 import math
 import os
-import socket
 import sys
-import time
 
 import rockjax
-from rockjax._distributed import ProcessError, stdout_to_stderr
+from rockjax._distributed import DEFAULT_TIMEOUT, host_port, NoCoordinator, ProcessError
 
 from ._common import CLIError, converter, EXIT_USAGE, positive_int
 
-#: how long a process waits for the coordinator and the others by default [s] (JAX's 300)
-DEFAULT_TIMEOUT = 300.0
 #: the flags that name the processes explicitly, all or none
 _EXPLICIT = ("coordinator", "num_processes", "process_id")
 
@@ -60,15 +57,6 @@ def add_distributed_arguments(parser):
                    f"(default {DEFAULT_TIMEOUT:g})")
 
 
-def _host_port(text):
-    """(host, port) of --coordinator HOST:PORT (an IPv6 host in brackets: [::1]:1234)."""
-    host, sep, port = str(text).rpartition(":")
-    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
-    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
-        raise CLIError(f"--coordinator must be HOST:PORT with a port 1-65535, got {text!r}")
-    return host, int(port)
-
-
 def requested(args):
     """Whether the command line asks for jax.distributed (flags checked)."""
     given = [f for f in _EXPLICIT if getattr(args, f, None) is not None]
@@ -85,7 +73,10 @@ def requested(args):
                 f"{args.num_processes} (0 to {args.num_processes - 1})"
             )
     if args.coordinator is not None:
-        _host_port(args.coordinator)
+        try:
+            host_port(args.coordinator)
+        except ValueError as e:
+            raise CLIError(f"--coordinator {e.message}") from None
     wanted = bool(given) or args.distributed
     if args.coordinator_timeout is not None and not wanted:
         raise CLIError("--coordinator-timeout applies with --distributed or --coordinator only")
@@ -95,11 +86,9 @@ def requested(args):
 # ------------------------------------------------------------------------------ start
 @dataclasses.dataclass
 class Cluster(rockjax.Processes):
-    """`rockjax.Processes` (the block split and the gathers) and the command's connection:
-    stdout sent to stderr while connected, and a prompt exit when a process was lost."""
+    """`rockjax.Processes` and the command's way out: a failed collective as a one-line
+    error, and a prompt exit when a process was lost."""
 
-    #: undoes the redirection of stdout to stderr held while connected
-    quiet: contextlib.ExitStack | None = dataclasses.field(default=None, repr=False)
     #: why a collective failed (another process died): then `stop` leaves at once
     lost: str | None = None
 
@@ -114,21 +103,13 @@ class Cluster(rockjax.Processes):
             raise CLIError(str(e)) from None
 
     def stop(self):
-        """Leave jax.distributed (every process waits for the others here); stdout is
-        this process's own again."""
+        """`rockjax.Processes.stop`; after a lost process, say why and leave at once."""
         if self.lost is not None:
             # JAX's shutdown (here or at exit) would wait for the lost process until its
             # heartbeat timeout (100 s) and then abort with a stack trace: say why, leave
             print(f"rockjax sweep: error: {self.lost}", file=sys.stderr, flush=True)
             os._exit(EXIT_USAGE)
-        if self.active:
-            import jax
-
-            self.active = False
-            try:
-                jax.distributed.shutdown()
-            finally:
-                self.quiet.close()
+        super().stop()
 
 
 def start(args):
@@ -136,25 +117,17 @@ def start(args):
     process that connects nowhere. Call before any JAX computation."""
     if not requested(args):
         return Cluster()
-    import jax
-
-    if getattr(jax.config, "jax_cpu_collectives_implementation", "gloo") in (None, "none"):
-        jax.config.update("jax_cpu_collectives_implementation", "gloo")
     timeout = DEFAULT_TIMEOUT if args.coordinator_timeout is None else args.coordinator_timeout
-    deadline = time.monotonic() + timeout
-    if args.coordinator is not None and args.process_id is not None:
-        _check_coordinator(args.coordinator, args.process_id, timeout)
-    kwargs = {"coordinator_address": args.coordinator, "num_processes": args.num_processes,
-              "process_id": args.process_id,
-              "initialization_timeout": max(1, math.ceil(deadline - time.monotonic()))}
-    quiet = contextlib.ExitStack()
-    quiet.enter_context(stdout_to_stderr())  # until stop(): gloo prints to C's stdout
     try:
-        jax.distributed.initialize(**kwargs)
+        return Cluster.start(args.coordinator, args.num_processes, args.process_id,
+                             timeout=timeout)
+    except NoCoordinator as e:
+        raise CLIError(f"--coordinator {e.value}: {e.message}, or raise --coordinator-timeout"
+                       ) from None
+    except rockjax.ParameterError:
+        raise
     except BaseException as e:
-        quiet.close()
         raise _start_error(e, args) from None
-    return Cluster(jax.process_index(), jax.process_count(), True, quiet=quiet)
 
 
 def _start_error(e, args):
@@ -168,41 +141,3 @@ def _start_error(e, args):
     if isinstance(e, ValueError):
         return CLIError(f"--coordinator: {e}")
     return e
-
-
-def _check_coordinator(text, process_id, timeout):
-    """One-line errors before JAX tries (JAX ends the process on a failed connection):
-    process 0 must be able to listen on PORT; the others wait for it to answer."""
-    host, port = _host_port(text)
-    if process_id == 0:
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
-                s.bind(("", port))
-            except OSError as e:
-                raise CLIError(
-                    f"--coordinator {text}: process 0 cannot listen on port {port} "
-                    f"({e.strerror or e}); choose a free port"
-                ) from None
-        return
-    _wait_for(host, port, text, timeout)
-
-
-def _wait_for(host, port, text, timeout):
-    """Return once something listens at host:port; a CLIError after `timeout` seconds."""
-    deadline = time.monotonic() + timeout
-    while True:
-        left = deadline - time.monotonic()
-        try:
-            with socket.create_connection((host, port), timeout=max(0.1, min(2.0, left))):
-                return
-        except socket.gaierror as e:
-            raise CLIError(f"--coordinator {text}: unknown host {host!r} ({e.strerror})") from None
-        except OSError as e:
-            if left <= 0:
-                raise CLIError(
-                    f"--coordinator {text}: no coordinator answered within {timeout:g} s "
-                    f"({e.strerror or e}); start process 0 there, or raise "
-                    "--coordinator-timeout"
-                ) from None
-        time.sleep(min(0.25, max(0.0, left)))

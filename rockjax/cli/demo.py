@@ -14,8 +14,9 @@ import numpy as np
 import rockjax
 from rockjax import datasets
 from rockjax._plotting import plot_fit, plot_pushover, plot_response, pushover_curves
+from rockjax._report import derived_table, record_info, record_line
 
-from ._common import derived_table, record_info, record_line, save
+from ._common import save
 from .fit import fit_stats_lines, fit_trace, fit_value_table
 
 #: the synthetic decay trace shipped with rockjax that the identification stage fits

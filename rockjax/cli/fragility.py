@@ -8,17 +8,15 @@ bootstrap band over the records, reported as text, --json and a --plot (docs/fra
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import warnings
 
-import numpy as np
-
 import rockjax
 from rockjax._fragility import parse_im, parse_limit
 from rockjax._plotting import new_figure
-from rockjax._sweep import write_csv
+from rockjax._report import status_line
+from rockjax._sweep import status_totals, write_csv
 
 from . import sweep
 from ._common import add_outputs, check_outputs, CLIError, converter, model_info, model_line, save
@@ -26,8 +24,6 @@ from ._common import add_outputs, check_outputs, CLIError, converter, model_info
 #: the library parameters that the options of `rockjax fragility` set (errors name them)
 FLAGS = {**sweep.FLAGS, "im": "--im", "limit": "--limit", "n_bootstrap": "--bootstrap",
          "confidence": "--confidence", "seed": "--seed"}
-#: standard normal quantiles of the probabilities the text report gives the IM at
-_Z = {0.1: -1.2815515655446004, 0.5: 0.0, 0.9: 1.2815515655446004}
 #: the keys of the sweep's JSON that `--json` shows under "sweep"
 _SWEEP_KEYS = ("n_runs", "n_records", "n_scales", "status_counts", "wall_time_s", "tail_s",
                "t1", "grid_dt_s", "model", "model_info", "method", "substeps", "records",
@@ -54,13 +50,14 @@ def add_parser(subparsers):
         scales='scale factors on every record: a comma list such as "0.5,1,1.5" or a range '
         '"START:STOP:N" of N evenly spaced values, ends included')
     sweep.add_run_arguments(w)
-    w.add_argument("--im", type=_checked(parse_im), default="PGA", metavar="IM",
+    w.add_argument("--im", type=converter("--im", _valid(parse_im)), default="PGA",
+                   metavar="IM",
                    help="intensity measure: PGA [g] (default), PGV [m/s], PGD [m], Sa(T) [g] "
                    "(5 %%-damped pseudo-spectral acceleration at the period T in s, e.g. "
                    "'Sa(1.0)'), or scale")
-    w.add_argument("--limit", default="overturned", metavar="LIMIT", type=_checked(
-        parse_limit, "--limit must be overturned, uplift=METRES or rotation=RADIANS (a "
-        "positive threshold)"), help="limit state: overturned (default), uplift=M (peak corner "
+    w.add_argument("--limit", default="overturned", metavar="LIMIT", type=converter(
+        "--limit", _valid(parse_limit), noun="overturned, uplift=METRES or rotation=RADIANS "
+        "(a positive threshold)"), help="limit state: overturned (default), uplift=M (peak corner "
         "uplift >= M metres) or rotation=RAD (peak rotation >= RAD radians); an overturned run "
         "exceeds every limit")
     w.add_argument("--bootstrap", type=converter("--bootstrap", int, lambda n: n >= 0, "be >= 0"),
@@ -77,16 +74,9 @@ def add_parser(subparsers):
     return w
 
 
-def _checked(parse, message=None):
-    """An argparse type: the text, once `parse` accepts it (else its error, or `message`)."""
-    def conv(text):
-        try:
-            parse(text)
-        except ValueError as e:
-            raise argparse.ArgumentTypeError(str(e) if message is None
-                                             else f"{message}, got {text!r}") from None
-        return text
-    return conv
+def _valid(parse):
+    """The text itself, once `parse` accepts it (a `converter` kind)."""
+    return lambda text: (parse(text), text)[1]
 
 
 # --------------------------------------------------------------------------------- run
@@ -125,34 +115,11 @@ def run(args):
 
 
 # ----------------------------------------------------------------------------- outputs
-def _interval(fit, ci, unit=""):
-    return "" if ci is None else (f"  ({fit.confidence:.0%} interval {ci[0]:.4g} to "
-                                  f"{ci[1]:.4g}{unit})")
-
-
 def _print_report(args, sw, fit):
-    sweep.print_inputs(args, sw)
-    counts = sw.status_counts()
-    failed = {k: v for k, v in fit.n_failed.items() if v}
-    left = ", ".join(f"{k} {v}" for k, v in failed.items())
-    unit = f" {fit.im_unit}" if fit.im_unit != "-" else ""
-    beta = "0 (separated: a step at the median)" if fit.separated else f"{fit.beta:.4g}"
-    at = ", ".join(f"{fit.median * np.exp(fit.beta * z):.4g}" for z in _Z.values())
+    sweep.print_inputs(sw)
     print(f"sweep         {sw.runs}: {len(sw.rec_labels)} record(s) x {len(sw.scales)} scale(s), "
           f"{sw.wall:.3g} s ({sw.n_runs / sw.wall:.3g} runs/s, compilation included)\n"
-          "status        " + ", ".join(f"{k} {v}" for k, v in counts.items() if v) + "\n"
-          f"fit           P({fit.limit} | {fit.im}) = Phi(ln({fit.im}/median)/beta), maximum "
-          f"likelihood over the {fit.n_used} runs that completed or overturned "
-          f"({fit.n_exceeded} reached the limit); "
-          + (f"{sum(failed.values())} failed runs left out ({left})" if failed else
-             "no failed runs") + "\n"
-          f"median        {fit.median:.4g}{unit}{_interval(fit, fit.median_ci, unit)}\n"
-          f"beta          {beta}{_interval(fit, fit.beta_ci)}\n"
-          f"quantiles     {fit.im} at P = 10, 50, 90 %: {at}{unit}")
-    if fit.n_bootstrap:
-        kinds = ", ".join(f"{k} {v}" for k, v in fit.bootstrap_counts.items() if v)
-        print(f"bootstrap     {fit.n_bootstrap} resamples of the {fit.resampled} (seed "
-              f"{fit.seed}): {kinds}")
+          f"status        {status_line(status_totals(sw.results))}\n{fit.report()}")
     for what, path in (("results", args.out), ("plot", args.plot)):
         if path:
             print(f"{what} written to {path}")

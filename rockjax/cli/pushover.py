@@ -6,15 +6,14 @@ import json
 import math
 
 from rockjax._plotting import plot_pushover, pushover_curves
+from rockjax._report import DERIVED_UNITS, pushover_table
 
 from ._common import (
     add_outputs,
-    add_plausibility_argument,
+    add_structure_argument,
     check_outputs,
     CLIError,
     converter,
-    derived_table,
-    DERIVED_UNITS,
     load_structure,
     positive_float,
     write_columns,
@@ -37,8 +36,7 @@ def add_parser(subparsers):
         "the simplified (Eqs 13, 20) and exact (Eqs 13, 18) closed forms and the numerical "
         "pushover of the rigid body on two springs.",
     )
-    q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    add_plausibility_argument(q)
+    add_structure_argument(q)
     q.add_argument("--umax", type=positive_float("--umax"), metavar="M",
                    help="largest displacement [m] (default 0.99 u_overturn)")
     q.add_argument("--points", type=converter("--points", int, lambda n: n >= 2, "be at least 2"),
@@ -59,16 +57,6 @@ def _umax(s, umax):
     return umax
 
 
-def _print_table(derived, curves):
-    n = len(curves["u"])
-    print(derived_table(derived), "", f"{'u [m]':>10} {'simplified [N]':>15} {'exact [N]':>12} "
-          f"{'numerical [N]':>14}", sep="\n")
-    for i in sorted({int(round(k * (n - 1) / 20)) for k in range(21)}):
-        print(f"{curves['u'][i]:10.5f} {curves['simplified'][i]:15.3f} "
-              f"{curves['exact'][i]:12.3f} {curves['numerical'][i]:14.3f}")
-    print(f"({n} points; --json or --out FILE.csv for all of them)")
-
-
 def run(args):
     s = load_structure(args.structure, args.check_plausible)
     umax = _umax(s, args.umax)
@@ -85,7 +73,8 @@ def run(args):
             "units": {"u": "m", "simplified": "N", "exact": "N", "numerical": "N",
                       "angles": "rad (and deg in *_deg)", "derived": DERIVED_UNITS}}))
         return 0
-    _print_table(s.derived(), curves)
+    print(pushover_table(s.derived(), curves))
+    print(f"({len(curves['u'])} points; --json or --out FILE.csv for all of them)")
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

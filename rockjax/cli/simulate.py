@@ -10,11 +10,12 @@ import numpy as np
 
 import rockjax
 from rockjax._plotting import plot_response
+from rockjax._report import record_info, record_line
 
 from ._common import (
     add_model_arguments,
     add_outputs,
-    add_plausibility_argument,
+    add_structure_argument,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
@@ -26,17 +27,12 @@ from ._common import (
     model_line,
     positive_float,
     RECORD_FLAGS,
-    record_info,
-    record_line,
     record_units,
     RECORD_UNITS_METAVAR,
-    write_columns,
 )
 
 #: the library parameters that the options of `rockjax simulate` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "u0": "--u0", "v0": "--v0"}
-#: the --out CSV columns and their units (the header reads t_s,u_m,v_m_s,theta_rad,uplift_m)
-CSV_COLUMNS = {"t": "s", "u": "m", "v": "m_s", "theta": "rad", "uplift": "m"}
 #: output step [s] of a free-vibration run (a ground-motion run uses the record's step)
 _FREE_DT = 0.002
 
@@ -49,8 +45,7 @@ def add_parser(subparsers):
         "Free vibration: --u0 [--v0]. Ground motion: --record FILE (PEER AT2, two columns "
         "t a, or one column with --record-dt) [--units g|m/s2|cm/s2|gal|...] [--scale S].",
     )
-    m.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    add_plausibility_argument(m)
+    add_structure_argument(m)
     m.add_argument("--u0", type=finite_float("--u0"), metavar="M", help="release displacement [m]")
     m.add_argument("--v0", type=finite_float("--v0"), default=0.0, metavar="V",
                    help="release velocity [m/s] (default 0)")
@@ -126,19 +121,12 @@ def _result(args, s, res, t1, read):
             "units": UNITS}
 
 
-def _print_summary(args, out):
+def _print_summary(args, s, res, out):
     read = out["excitation"]
     print(f"record        {record_line(read)}" if read["type"] == "ground_motion" else
           f"release       u0 = {read['u0']:g} m, v0 = {read['v0']:g} m/s")
-    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s\n"
-          f"status        {out['status']}\n"
-          f"peak |u|      {out['peak_u']:.6g} m at t = {out['t_peak']:.6g} s\n"
-          f"peak theta    {out['peak_theta']:.6g} rad = {out['peak_theta_over_alpha_c']:.4g} "
-          f"alpha_c\npeak uplift   {out['peak_uplift']:.6g} m\nimpacts       {out['n_impacts']}")
-    if out["t_overturn"] is not None:
-        print(f"t_overturn    {out['t_overturn']:.6g} s")
-    else:
-        print(f"residual u    {out['residual_u']:.6g} m at t = {out['t_end']:.6g} s")
+    print(f"model         {model_line(model_info(args))} (= {out['r']:.4g}), t1 = {out['t1']:g} s")
+    print(res.report(s, rockjax.get_model(args.model, args.impact)))
     for what, path in (("time history", args.out), ("plot", args.plot)):
         if path:
             print(f"{what} written to {path}")
@@ -157,12 +145,11 @@ def run(args):
     if out["fidelity_warning"]:
         print(f"warning: {out['fidelity_warning']}", file=sys.stderr)
     if args.out:
-        write_columns(args.out, {k: np.asarray(getattr(res, "ts" if k == "t" else k))
-                                 for k in CSV_COLUMNS}, CSV_COLUMNS)
+        res.to_csv(args.out)
     if args.plot:
         _write_plot(args, s, res, gm, read)
     if args.json:
         print(json.dumps(out))
         return 0
-    _print_summary(args, out)
+    _print_summary(args, s, res, out)
     return 0

@@ -3,24 +3,22 @@
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 
 import rockjax
 from rockjax._plotting import new_figure
-from rockjax._spectrum import frequency_parameter
+from rockjax._spectrum import periods_at
 
 from ._common import (
     add_model_arguments,
     add_outputs,
-    add_plausibility_argument,
+    add_structure_argument,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
     load_structure,
     model_info,
-    model_line,
     number_list,
     save,
 )
@@ -51,8 +49,7 @@ def add_parser(subparsers):
                        "or a range START:STOP:N")
     which.add_argument("--ratios", type=number_list("--ratios"), metavar="X",
                        help="the same as omega_p / p (rectangular: p t1), a list or a range")
-    q.add_argument("--structure", metavar="FILE.toml", help="structure file (default: Table 1)")
-    add_plausibility_argument(q)
+    add_structure_argument(q)
     add_model_arguments(q, "model (default rigid_body, the body's own equation)",
                         fidelity=False)
     q.set_defaults(model="rigid_body")
@@ -63,35 +60,13 @@ def add_parser(subparsers):
     return q
 
 
-def _periods(args, s):
-    if args.periods is not None:
-        return np.asarray(args.periods)
-    p = frequency_parameter(s)
-    x = np.asarray(args.ratios)
-    return x / p if args.pulse == "rectangular" else 2 * math.pi / (p * x)
-
-
-def _print_report(args, sp, info):
-    x = "p t1" if sp.kind == "rectangular" else "wp/p"
-    print(f"overturning spectrum, {sp.kind} pulse ({model_line(info)})\n"
-          f"p = {sp.p:.4g} rad/s, g tan(alpha) = {sp.g_tan_alpha:.4g} m/s2, rtol {sp.rtol:g}\n"
-          f"{'period [s]':>11} {x:>7} {'a [m/s2]':>10} {'a/(g tan a)':>12}  {'mode':<13}"
-          f"{'no impact [m/s2]':>17}")
-    for i in np.argsort(sp.periods):
-        print(f"{sp.periods[i]:11.4g} {sp.x[i]:7.3f} {sp.amplitude[i]:10.4g} "
-              f"{sp.normalised[i]:12.4f}  {sp.mode[i]:<13}{sp.amplitude_no_impact[i]:17.4g}")
-    print(f"{sp.n_runs} runs in {sp.wall_time:.2f} s; {sp.n_failed} failed runs "
-          "(max_impacts, solver_failure) counted as survivors")
-    if np.any(np.isnan(sp.amplitude)):
-        print("nan: nothing overturned up to 1000 g tan(alpha)")
-
-
 def run(args):
     s = load_structure(args.structure, args.check_plausible)
     check_outputs(args)
     if not 1e-8 <= args.rtol <= 0.1:
         raise CLIError(f"--rtol must lie in [1e-8, 0.1], got {args.rtol}")
-    T = _periods(args, s)
+    T = (np.asarray(args.periods) if args.periods is not None
+         else periods_at(s, PULSES[args.pulse], args.ratios))
     sp = rockjax.overturning_spectrum(s, PULSES[args.pulse], T, model=args.model,
                                       impact=args.impact, r=args.r, rtol=args.rtol,
                                       progress=None if not args.json else False)
@@ -106,7 +81,7 @@ def run(args):
         print(json.dumps({**sp.to_dict(), "model_info": info, "plot": args.plot,
                           "csv": args.out}))
         return 0
-    _print_report(args, sp, info)
+    print(sp.report())
     for what, path in (("plot", args.plot), ("CSV", args.out)):
         if path:
             print(f"{what} written to {path}")

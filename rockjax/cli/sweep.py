@@ -25,8 +25,8 @@ from rockjax._batch import DEFAULT_TAIL
 from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
-from rockjax._suite import expand_folders, RecordFile, unique_labels
-from rockjax._sweep import USABLE, write_csv
+from rockjax._suite import expand_folders, RecordFile, split_record_units, unique_labels
+from rockjax._sweep import report_sweeps, status_totals, write_csv
 
 from . import _distributed
 from ._common import (
@@ -44,21 +44,19 @@ from ._common import (
     load_structure,
     MAX_STEPS,
     model_info,
-    model_line,
     positive_float,
     positive_int,
     RECORD_FLAGS,
-    record_info,
     record_units,
     RECORD_UNITS_METAVAR,
     save,
     scale_list,
-    split_record_units,
 )
 
 #: the library parameters that the options of `rockjax sweep` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scales",
-         "tail": "--tail", "structure": "--structure", "records": "--record"}
+         "tail": "--tail", "structure": "--structure", "records": "--record",
+         "coordinator": "--coordinator"}
 
 
 # ------------------------------------------------------------------------------ parser
@@ -222,38 +220,6 @@ class Sweep:
     def runs(self):
         return f"{self.n_runs} run{'s' if self.n_runs != 1 else ''}"
 
-    @property
-    def grid_dt(self):
-        """The records' common time step [s]."""
-        return common_time_step([r.dt for r in self.records])
-
-    @property
-    def t_ends(self):
-        """Each record's end of run [s]: its end plus the tail, capped at --t1."""
-        ends = [r.dt * (r.npts - 1) + self.tail for r in self.records]
-        return [e if self.t1 is None else min(e, self.t1) for e in ends]
-
-    def record_infos(self):
-        """`record_info` of each record (without the scale: the sweep's), with its label
-        and end of run."""
-        return [{"label": lab, **{k: v for k, v in record_info(rec).items()
-                                  if k not in ("scale", "scaled_pga_g")}, "t_end_s": t_end}
-                for lab, rec, t_end in zip(self.rec_labels, self.records, self.t_ends)]
-
-    def status_counts(self):
-        counts = [r.status_counts() for r in self.results]
-        return {name: sum(c[name] for c in counts) for name in rockjax.STATUS}
-
-    def fractions(self):
-        """Per structure label, `SweepResult.fraction_overturned` (None for NaN)."""
-        return {lab: [None if np.isnan(x) else float(x) for x in r.fraction_overturned()]
-                for lab, r in zip(self.struct_labels, self.results)}
-
-    def failed_by_scale(self):
-        """Per structure label, `SweepResult.failed_by_scale`."""
-        return {lab: r.failed_by_scale().tolist()
-                for lab, r in zip(self.struct_labels, self.results)}
-
 
 def read_sweep(args):
     """The sweep's inputs, read and checked (no run yet); the records' common time step is
@@ -263,17 +229,17 @@ def read_sweep(args):
     specs, skipped = expand_folders(specs)
     records = _read_records(specs, default_units, args.record_dt, args.check_plausible)
     try:
-        common_time_step([r.dt for r in records], names=[pathlib.Path(s.path).name for s in specs])
+        grid = common_time_step([r.dt for r in records],
+                                names=[pathlib.Path(s.path).name for s in specs])
     except ValueError as e:
         raise CLIError(f"--record: {first_line(e)}") from None
     sweep = Sweep(structures, struct_labels, records, unique_labels([s.path for s in specs]),
                   np.asarray(args.scales, float), args.tail, args.t1, skipped)
-    n = max(sweep.t_ends) / sweep.grid_dt
+    n = max(min(r.dt * (r.npts - 1) + sweep.tail, sweep.t1 or math.inf) for r in records) / grid
     if not n <= MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error
         raise CLIError(
             f"--tail {sweep.tail:g} s makes runs of {n:.3g} steps of the records' common grid "
-            f"({sweep.grid_dt:g} s), more than {MAX_STEPS:,}; shorten --tail or cap the runs "
-            "with --t1")
+            f"({grid:g} s), more than {MAX_STEPS:,}; shorten --tail or cap the runs with --t1")
     return sweep
 
 
@@ -320,78 +286,34 @@ def _load_sweep(args, cluster):
 # ---------------------------------------------------------------------------- outputs
 def sweep_json(args, sweep):
     """The sweep's JSON object (`--json`; `rockjax fragility` shows part of it)."""
-    n_runs, wall = sweep.n_runs, sweep.wall
+    n_runs, wall, first = sweep.n_runs, sweep.wall, sweep.results[0]
     return {
         "n_runs": n_runs, "n_structures": len(sweep.structures),
         "n_records": len(sweep.rec_labels), "n_scales": len(sweep.scales),
-        "status_counts": sweep.status_counts(), "wall_time_s": wall,
+        "status_counts": status_totals(sweep.results), "wall_time_s": wall,
         "runs_per_s": n_runs / wall if wall > 0 else None, "processes": sweep.processes,
-        "tail_s": sweep.tail, "t1": sweep.t1, "grid_dt_s": sweep.grid_dt, "model": args.model,
+        "tail_s": sweep.tail, "t1": sweep.t1, "grid_dt_s": first.grid_dt, "model": args.model,
         "model_info": model_info(args), "method": args.method,
         "substeps": args.substeps if args.method == "rk4" else None, "csv": str(args.out),
         "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
-        "record_info": sweep.record_infos(), "skipped_files": sweep.skipped,
+        "record_info": first.record_info(), "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
-        "fraction_overturned": sweep.fractions(),
-        "failed_by_scale": sweep.failed_by_scale(), "warnings": sweep.warnings,
+        "fraction_overturned": {lab: [None if np.isnan(x) else float(x)
+                                      for x in r.fraction_overturned()]
+                                for lab, r in zip(sweep.struct_labels, sweep.results)},
+        "failed_by_scale": {lab: r.failed_by_scale().tolist()
+                            for lab, r in zip(sweep.struct_labels, sweep.results)},
+        "warnings": sweep.warnings,
     }
 
 
-def print_inputs(args, sweep):
-    """What was read and what produced the results: records, their grid, the model."""
+def print_inputs(sweep):
+    """What was read and what produced the results: folders, records, their grid, the model."""
     for folder, names in sweep.skipped.items():
         taken = sum(pathlib.Path(r.source).parent == pathlib.Path(folder) for r in sweep.records)
         note = f"; skipped (not record files): {', '.join(names)}" if names else ""
         print(f"folder        {folder}: {taken} record file(s) taken{note}")
-    for i in sweep.record_infos():
-        src = f" ({i['units_from']})" if i["units_from"] else ""
-        print(f"record        {i['label']}: units {i['units_in_file']}{src}, dt {i['dt_s']:g} s, "
-              f"{i['n_points']} points, {i['duration_s']:g} s, PGA {i['pga_g']:.4g} g, "
-              f"run to {i['t_end_s']:g} s")
-    cap = "" if sweep.t1 is None else f", at most t1 = {sweep.t1:g} s"
-    dts = ", ".join(f"{d:g}" for d in sorted({r.dt for r in sweep.records}))
-    print(f"grid          {sweep.grid_dt:g} s (record steps {dts} s, resampled exactly); "
-          f"each run to its record's end + tail {sweep.tail:g} s{cap}")
-    print(f"model         {model_line(model_info(args))}, {args.method}"
-          + (f" ({args.substeps} substeps)" if args.method == "rk4" else ""))
-
-
-def _print_report(args, sweep):
-    counts, n_runs, n_s = sweep.status_counts(), sweep.n_runs, len(sweep.scales)
-    n_over = counts["overturned"]
-    failed = {k: v for k, v in counts.items() if rockjax.STATUS[k] not in USABLE and v}
-    n_used = n_runs - sum(failed.values())
-    print_inputs(args, sweep)
-    procs = f", {sweep.processes} processes" if sweep.processes > 1 else ""
-    print(f"sweep         {sweep.runs}: {len(sweep.structures)} structure(s) x "
-          f"{len(sweep.rec_labels)} record(s) x {n_s} scale(s)\n"
-          f"time          {sweep.wall:.3g} s ({n_runs / sweep.wall:.3g} runs/s, compilation "
-          f"included{procs})\nstatus        "
-          + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
-    share = f"{n_over / n_used:.1%}" if n_used else "-"
-    if failed:
-        left = ", ".join(f"{k} {v}" for k, v in failed.items())
-        print(f"overturned    {n_over} of the {n_used} runs that completed or overturned "
-              f"({share}); {n_runs - n_used} failed runs left out ({left})")
-    else:
-        print(f"overturned    {n_over} of {n_runs} ({share})")
-    labels, fractions = sweep.struct_labels, sweep.fractions()
-    width = max(8, *(len(lab) + 2 for lab in labels))
-    head = f"{'scale':>10}" + "".join(f"{lab:>{width}}" for lab in labels)
-    print(f"fraction overturned by scale (of the runs that completed or overturned):\n{head}")
-    for i in range(n_s) if n_s <= 25 else [*range(12), None, *range(n_s - 12, n_s)]:
-        print(f"{'...':>10}" if i is None else f"{sweep.scales[i]:>10.4g}" + "".join(
-            f"{'-' if (x := fractions[lab][i]) is None else f'{x:.3f}':>{width}}"
-            for lab in labels))
-    if failed:
-        by_scale = sweep.failed_by_scale()
-        print("failed runs by scale (max_impacts, solver_failure; left out of the fractions):"
-              f"\n{head}")
-        for i, scale in enumerate(sweep.scales):
-            if any(by_scale[lab][i] for lab in labels):
-                print(f"{scale:>10.4g}"
-                      + "".join(f"{by_scale[lab][i]:>{width}d}" for lab in labels))
-    print(f"results written to {args.out}")
+    print(sweep.results[0].report_inputs())
 
 
 def run(args):
@@ -424,7 +346,10 @@ def run(args):
     if args.json:
         print(json.dumps(sweep_json(args, sweep)))
         return 0
-    _print_report(args, sweep)
+    print_inputs(sweep)
+    print(report_sweeps(sweep.results, sweep.struct_labels, wall_time=sweep.wall,
+                        processes=sweep.processes, inputs=False))
+    print(f"results written to {args.out}")
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

@@ -86,6 +86,14 @@ class JointFitResult:
     def n_traces(self) -> int:
         return len(self.per_trace)
 
+    def report(self, read_warnings=()) -> str:
+        """The joint fit as text (what `rockjax fit A.csv B.csv` prints): the shared values
+        with their standard errors, each trace's u0, t0, rms residual and lack of fit, then
+        `read_warnings`, the k_f correlations, loss, convergence, notes and warnings."""
+        from ._report import joint_report
+
+        return joint_report(self, read_warnings)
+
     def summary(self) -> dict:
         """A JSON-ready dict: the shared values, standard errors, held and starting
         values, `traces` (the per-trace dicts), the correlation of every fitted parameter,

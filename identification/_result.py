@@ -93,6 +93,31 @@ class FitResult:
         """What the residuals look like when they are not noise (None when they are)."""
         return self.lack_of_fit.get("diagnosis")
 
+    def release_text(self) -> str:
+        """Where the release was found in the trace (after a hold, or at the first sample)
+        and the t0 the fit used, in one line."""
+        from ._report import release_line
+
+        return release_line(self)
+
+    def report(self, truth=None, read_warnings=()) -> str:
+        """The fit as text (what `rockjax fit` prints): the values with their standard
+        errors (with `truth`, a dict of true values: also the truth and error/SE; 0 for an
+        absent nuisance parameter), then `read_warnings` (messages of reading the trace),
+        the k_f correlations, loss, rms residual, convergence, the lack-of-fit check, notes
+        and warnings.
+
+        ```python
+        path = identification.synthetic_trace_path("synthetic_decay_noisy")
+        fit = identification.fit_decay(identification.read_trace(path),
+                                        rockjax.mcmanus_column())
+        print(fit.report())
+        ```
+        """
+        from ._report import fit_report
+
+        return fit_report(self, truth, read_warnings)
+
     def summary(self) -> dict:
         """A JSON-ready dict: values, standard errors, held and starting values,
         correlation, loss, converged, the release, the lack-of-fit check, the model fitted

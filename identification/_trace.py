@@ -289,6 +289,13 @@ class DecayTrace:
         """Whether an uplift channel is present."""
         return self.uplift is not None
 
+    def report(self) -> list[str]:
+        """What was read, as lines of text (what `rockjax fit` prints): the columns and
+        units of each channel, dt, points, duration, amplitude, rows dropped."""
+        from ._report import trace_lines
+
+        return trace_lines(self.info())
+
     def info(self) -> dict:
         """What was read, JSON-ready (SI values; keys carry their units): ``file``,
         ``columns``, ``units_in_file``, ``units_from`` (per channel), ``dt_s``,

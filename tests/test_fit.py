@@ -308,3 +308,26 @@ def test_synthetic_faults_object_equals_the_keywords():
         identification.synthetic_trace(offset=1e-3, faults=identification.Faults())
     with pytest.raises(TypeError, match="unexpected keyword"):
         identification.synthetic_trace(ofset=1e-3)
+
+
+def test_report_is_the_fit_as_text(noisy_fit):
+    """`FitResult.report` (what `rockjax fit` prints): one row per parameter with its value
+    and standard error, the truth and error/SE when given (0 for the sensor's offsets),
+    the reading warnings after a blank line, then the statistics; `release_text` says
+    where the release was found."""
+    fit, truth = noisy_fit
+    text = fit.report(truth=truth, read_warnings=["dropped 2 rows"])
+    lines = text.splitlines()
+    assert lines[0].split() == ["parameter", "fitted", "std.", "error", "true", "error/SE",
+                                "unit"]
+    rows = {ln.split()[0]: ln.split() for ln in lines[1:len(fit.names) + 1]}
+    assert set(rows) == set(fit.names)
+    assert float(rows["k_f"][1]) == pytest.approx(fit.values["k_f"], rel=1e-5)
+    z = (fit.values["k_f"] - truth["k_f"]) / fit.stderr["k_f"]
+    assert float(rows["k_f"][4]) == pytest.approx(z, abs=0.006) and rows["k_f"][5] == "N/m"
+    assert float(rows["offset"][3]) == 0.0
+    assert lines[len(fit.names) + 1] == "" and lines[len(fit.names) + 2] == (
+        "warning: dropped 2 rows")
+    assert any(ln.startswith("lack of fit   ") for ln in lines)
+    assert "no hold before the motion" in fit.release_text() or "after a hold" in \
+        fit.release_text()

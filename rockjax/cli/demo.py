@@ -17,7 +17,7 @@ from rockjax._plotting import plot_fit, plot_pushover, plot_response, pushover_c
 from rockjax._report import derived_table, record_info, record_line
 
 from ._common import save
-from .fit import fit_stats_lines, fit_trace, fit_value_table
+from .fit import fit_trace
 
 #: the synthetic decay trace shipped with rockjax that the identification stage fits
 _DEMO_TRACE = "synthetic_decay_noisy"
@@ -132,7 +132,7 @@ def _demo_identification(s, out):
           f"(a rockjax simulation with noise, not a measurement; {trace.n} samples, "
           f"{trace.duration:.3g} s), started from Table 1 (k_f = {float(s.k_f):.4g} N/m, "
           f"r = {float(s.restitution):.3f} from Eq 3)")
-    print(fit_value_table(fit, truth=truth), *fit_stats_lines(fit), sep="\n")
+    print(fit.report(truth=truth))
     return save(fig, out / "identification.png")
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import pathlib
 import warnings
 
@@ -33,9 +32,6 @@ from ._common import (
 FLAGS = {**COMMON_FLAGS, "structure": "--structure", "columns": "--columns",
          "units": "--units", "drop_nan": "--drop-nan", "contact": "--contact", "c_f": "--c-f",
          "starts": "--starts", "params": "--params"}
-_FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m",
-              "offset": "m", "offset_uplift": "m", "drift": "m/s"}  # + the sensor's
-_SENSOR = ("offset", "offset_uplift", "drift")
 _PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
 _CHANNELS = ("t", "u", "uplift")
@@ -144,102 +140,19 @@ def fit_trace(trace, structure, params, *, model="simplified", impact="paper", r
 
 
 # ------------------------------------------------------------------------------ text
-def fit_value_table(fit, truth=None):
-    """The fitted values, their standard errors (and the truth, error/SE) as a table."""
-    head = f"{'parameter':<10}{'fitted':>14}{'std. error':>14}"
-    lines = [head + (f"{'true':>14}{'error/SE':>10}" if truth is not None else "") + "  unit"]
-    for p in fit.names:
-        v, se = fit.values[p], fit.stderr[p]
-        row = f"{p:<10}{v:>14.6g}{se:>14.3g}"
-        if truth is not None:
-            tv = truth.get(p, 0.0) if p in _SENSOR else truth[p]  # synthetic: no offset
-            z = (v - tv) / se if se > 0 and math.isfinite(se) else float("nan")
-            row += f"{tv:>14.6g}{z:>10.2f}"
-        lines.append(row + f"  {_FIT_UNITS[p]}")
-    return "\n".join(lines)
-
-
-def _corr_lines(fit, rho_of):
-    return [f"{f'corr(k_f, {o})':<13} {rho:+.4f}" for o in ("r", "c_f")
-            if (rho := rho_of(o)) is not None]
-
-
-def _closing_lines(fit):
-    """Convergence, then the fit's notes and warnings."""
-    return ([f"converged     {'yes' if fit.converged else 'NO'}  ({fit.n_iterations} iterations)"]
-            + [f"note: {n}" for n in fit.notes] + [f"warning: {w}" for w in fit.warnings])
-
-
-_LOSS = "loss          {:.6g}  (1/2 sum of squared residuals / scale^2)"
-
-
-def fit_stats_lines(fit):
-    """Correlation, loss, rms residual, convergence, lack of fit, notes and warnings."""
-    closing = _closing_lines(fit)
-    return [*_corr_lines(fit, lambda o: fit.identifiability.get(f"corr_k_f_{o}")),
-            _LOSS.format(fit.loss),
-            f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)",
-            closing[0], lack_of_fit_line(fit.lack_of_fit), *closing[1:]]
-
-
-def lack_of_fit_line(lack):
-    """The lack-of-fit check in one line: its statistics, thresholds and verdict."""
-    if not lack:
-        return "lack of fit   not checked"
-    th = lack["thresholds"]
-    diag = lack.get("diagnosis") or {}
-    cause = ("the model cannot represent the trace" if diag.get("cause", "model") == "model"
-             else f"the residuals look like {diag['message']}")
-    verdict = (f"FIRES: {cause}, standard errors do not hold"
-               if lack["fires"] else "no (residuals consistent with noise)")
-    return (f"lack of fit   {verdict}; lag-1 autocorrelation "
-            f"{lack['lag1_autocorrelation']:+.3f} (limit {th['lag1_autocorrelation']:g}), "
-            f"runs z {lack['runs_z']:+.1f} (limit {th['runs_z']:g})")
-
-
-def trace_lines(info):
-    """`DecayTrace.info()` as lines of text: the columns and units read, dt, points,
-    duration, amplitude, rows dropped."""
-    chans = ", ".join(
-        f"{ch} = column {info['columns'].get(ch, ch)!r} in {unit} ({info['units_from'][ch]})"
-        for ch, unit in info["units_in_file"].items())
-    out = [f"{info['file']}: {chans}",
-           f"dt {info['dt_s']:.6g} s, {info['n_points']} points, {info['duration_s']:.6g} s "
-           f"(t = {info['t_start_s']:.6g} .. {info['t_end_s']:.6g} s), "
-           f"max |u| {info['max_abs_u_m']:.4g} m"]
-    if info["dropped_nan_rows"]:
-        out.append(f"{info['dropped_nan_rows']} row(s) with missing values dropped (--drop-nan)")
-    return out
-
-
-def release_line(fit):
-    """Where the release was found, and the t0 the fit used."""
-    rel = fit.release
-    if rel["held"]:
-        found = (f"detected at t = {rel['release_time_s']:.6g} s, after a hold at "
-                 f"u = {rel['level_m']:.6g} m (noise sigma {rel['noise_sigma_m']:.3g} m)")
-    else:
-        found = (f"at the first sample, t = {rel['release_time_s']:.6g} s (no hold before "
-                 "the motion)")
-    used = (f"t0 fitted from there: {fit.values['t0']:.6g} s" if "t0" in fit.values
-            else f"t0 held there: {fit.fixed['t0']:.6g} s")
-    return f"{found}; {used}"
-
-
 def _print_traces(traces):
     for tr in traces:
-        lines = trace_lines(tr.info())
+        lines = tr.report()
         print(f"trace         {lines[0]}", *(f"              {ln}" for ln in lines[1:]), sep="\n")
 
 
 def _print_report(args, s, traces, fit, info, read_warnings):
     """The text report of one trace's fit."""
     _print_traces(traces)
-    print(f"release       {release_line(fit)}")
+    print(f"release       {fit.release_text()}")
     extra = f"; contact {info['contact']}, c_f {info['c_f']}" if "c_f" in info else ""
     print(f"model         {model_line(info)}{extra}; start k_f = {float(s.k_f):.6g} N/m\n")
-    print(fit_value_table(fit), "", *(f"warning: {w}" for w in read_warnings),
-          *fit_stats_lines(fit), sep="\n")
+    print(fit.report(read_warnings=read_warnings))
     if "u0" not in fit.names:
         print(f"note: u0 held at {fit.fixed['u0']:.6g} m (the first sample, or the level of "
               "the hold); for noisy traces fit it (the default --params)")
@@ -250,22 +163,7 @@ def _print_joint(args, s, traces, fit, info, read_warnings):
     _print_traces(traces)
     print(f"model         {model_line(info)}; start k_f = {float(s.k_f):.6g} N/m; joint fit "
           f"of {len(traces)} traces (shared: {', '.join(fit.names)})\n")
-    print(fit_value_table(fit), "", sep="\n")
-    print(f"{'trace':<28}{'u0 [m]':>12}{'SE':>10}{'t0 [s]':>12}{'SE':>10}{'rms [m]':>11}"
-          "  lack of fit")
-    for d in fit.per_trace:
-        row = f"{pathlib.Path(d['source']).name[:27]:<28}"
-        for p in ("u0", "t0"):
-            row += (f"{d['values'][p]:>12.6g}{d['stderr'][p]:>10.2g}" if p in d["values"]
-                    else f"{d['fixed'][p]:>12.6g}{'held':>10}")
-        print(row + f"{d['rms']:>11.3g}  {'FIRES' if d['lack_of_fit']['fires'] else 'no'}")
-    print()
-    names = fit.joint_names
-    shared = "k_f" in fit.names
-    print(*(f"warning: {w}" for w in read_warnings),
-          *_corr_lines(fit, lambda o: fit.correlation[names.index("k_f"), names.index(o)]
-                       if shared and o in fit.names else None),
-          _LOSS.format(fit.loss), *_closing_lines(fit), sep="\n")
+    print(fit.report(read_warnings=read_warnings))
 
 
 # ------------------------------------------------------------------------------- run

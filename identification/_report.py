@@ -62,21 +62,6 @@ def lack_of_fit_line(lack) -> str:
             f"runs z {lack['runs_z']:+.1f} (limit {th['runs_z']:g})")
 
 
-def trace_lines(info) -> list[str]:
-    """`DecayTrace.info()` as lines of text: the columns and units read, dt, points,
-    duration, amplitude, rows dropped."""
-    chans = ", ".join(
-        f"{ch} = column {info['columns'].get(ch, ch)!r} in {unit} ({info['units_from'][ch]})"
-        for ch, unit in info["units_in_file"].items())
-    out = [f"{info['file']}: {chans}",
-           f"dt {info['dt_s']:.6g} s, {info['n_points']} points, {info['duration_s']:.6g} s "
-           f"(t = {info['t_start_s']:.6g} .. {info['t_end_s']:.6g} s), "
-           f"max |u| {info['max_abs_u_m']:.4g} m"]
-    if info["dropped_nan_rows"]:
-        out.append(f"{info['dropped_nan_rows']} row(s) with missing values dropped (--drop-nan)")
-    return out
-
-
 def release_line(fit) -> str:
     """Where the release was found, and the t0 the fit used."""
     rel = fit.release

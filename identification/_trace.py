@@ -292,8 +292,6 @@ class DecayTrace:
     def report(self) -> list[str]:
         """What was read, as lines of text (what `rockjax fit` prints): the columns and
         units of each channel, dt, points, duration, amplitude, rows dropped."""
-        from ._report import trace_lines
-
         return trace_lines(self.info())
 
     def info(self) -> dict:
@@ -700,3 +698,18 @@ def _check_time_step(name: str, lineno: int, t: float, t_prev: float, prev_linen
             f"time goes backwards: {t!r} after {t_prev!r} "
             f"(line {prev_lineno}); time must be strictly increasing",
         )
+
+
+def trace_lines(info) -> list[str]:
+    """`DecayTrace.info()` as lines of text: the columns and units read, dt, points,
+    duration, amplitude, rows dropped."""
+    chans = ", ".join(
+        f"{ch} = column {info['columns'].get(ch, ch)!r} in {unit} ({info['units_from'][ch]})"
+        for ch, unit in info["units_in_file"].items())
+    out = [f"{info['file']}: {chans}",
+           f"dt {info['dt_s']:.6g} s, {info['n_points']} points, {info['duration_s']:.6g} s "
+           f"(t = {info['t_start_s']:.6g} .. {info['t_end_s']:.6g} s), "
+           f"max |u| {info['max_abs_u_m']:.4g} m"]
+    if info["dropped_nan_rows"]:
+        out.append(f"{info['dropped_nan_rows']} row(s) with missing values dropped (--drop-nan)")
+    return out

@@ -15,6 +15,73 @@ def new_figure(**kwargs):
     return Figure(**kwargs)
 
 
+def _drawn(fig):
+    """Draw `fig` (on an Agg canvas when it has none that renders) and return the renderer,
+    so that text extents are those of the saved image."""
+    canvas = fig.canvas
+    if not hasattr(canvas, "get_renderer"):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def fit_titles(fig, margin=2.0):
+    """Wrap every title (of each axes, and the figure's suptitle) that runs past the
+    figure's edges, then lay the figure out again; returns `fig`.
+
+    A title is measured as drawn (its window extent against the figure's box, `margin`
+    pixels inside, about its own centre); one too wide is re-wrapped from its original
+    text at the width that fits (its own line breaks kept), and a figure without a layout
+    engine is laid out again with `tight_layout`, so the title's height is made room for."""
+    import textwrap
+    import warnings
+
+    original = {}
+    for _ in range(4):
+        renderer, box, changed = _drawn(fig), fig.bbox, False
+        for t in [ax.title for ax in fig.axes] + list(fig.texts):
+            if not t.get_text() or not t.get_visible():
+                continue
+            ext = t.get_window_extent(renderer)
+            centre = 0.5 * (ext.x0 + ext.x1)
+            room = 2 * min(centre - box.x0, box.x1 - centre) - 2 * margin
+            if ext.width <= room:
+                continue
+            text = original.setdefault(id(t), t.get_text())
+            chars = max(len(ln) for ln in t.get_text().split("\n"))
+            width = max(10, int(chars * room / ext.width * 0.95))
+            t.set_text("\n".join(w for ln in text.split("\n")
+                                 for w in (textwrap.wrap(ln, width) or [""])))
+            changed = True
+        from matplotlib.layout_engine import PlaceHolderLayoutEngine
+
+        if isinstance(fig.get_layout_engine(), (type(None), PlaceHolderLayoutEngine)):
+            with warnings.catch_warnings():  # a figure too small for its titles: as it is
+                warnings.simplefilter("ignore", UserWarning)
+                fig.tight_layout()
+        if not changed:
+            break
+    return fig
+
+
+def titles_inside(fig, margin=0.5) -> list[str]:
+    """The titles (axes titles and suptitle) whose drawn extent leaves the figure, as
+    text (empty when every title lies inside); for tests."""
+    renderer = _drawn(fig)
+    box = fig.bbox
+    out = []
+    for t in [ax.title for ax in fig.axes] + list(fig.texts):
+        if not t.get_text() or not t.get_visible():
+            continue
+        e = t.get_window_extent(renderer)
+        if e.x0 < box.x0 - margin or e.x1 > box.x1 + margin or e.y0 < box.y0 - margin or \
+                e.y1 > box.y1 + margin:
+            out.append(t.get_text())
+    return out
+
+
 def pushover_curves(structure, umax=None, n=401):
     """The closed-form and numerical pushover curves on u in [0, umax] [m] (numpy arrays)."""
     import jax.numpy as jnp
@@ -81,7 +148,7 @@ def plot_pushover(structure, curves=None, *, ax=None, title=None):
     ax.legend(fontsize=9)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    return fig
+    return fit_titles(fig)
 
 
 def _until_overturn(res):
@@ -163,9 +230,11 @@ def plot_response(structure, response, *, ground_motion=None, title=None, label=
     status = _status_text(res.status)
     summary = (f"peak |u| = {1e3 * float(res.peak_u):.1f} mm, peak uplift = "
                f"{1e3 * float(res.peak_uplift):.1f} mm, {int(res.n_impacts)} impacts, {status}")
+    if overlay:  # several models drawn: the numbers are the main curve's
+        summary = f"{label or 'main curve'}: {summary}"
     axes[0].set_title((title + "\n" if title else "") + summary, fontsize=10)
     fig.tight_layout()
-    return fig
+    return fit_titles(fig)
 
 
 def _status_text(code):
@@ -258,7 +327,7 @@ def plot_sweeps(results, labels, *, title=None):
         ax_f.legend(fontsize=8)
     for ax in (ax_u, ax_f):
         ax.grid(alpha=0.3)
-    return fig
+    return fit_titles(fig)
 
 
 # ------------------------------------------------------------------------------- fits
@@ -297,7 +366,7 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
     axes[0].set_title((title + "\n" if title else "") + f"{_fit_values(fit)}; rms residual "
                       f"{1e3 * fit.rms:.3g} mm, {conv}", fontsize=10)
     fig.tight_layout()
-    return fig
+    return fit_titles(fig)
 
 
 def plot_joint_fit(traces, fit, *, title=None):
@@ -318,4 +387,4 @@ def plot_joint_fit(traces, fit, *, title=None):
     axes[-1].set_xlabel("time [s]")
     fig.suptitle((title + "\n" if title else "") + _fit_values(fit), fontsize=10)
     fig.tight_layout()
-    return fig
+    return fit_titles(fig)

@@ -229,8 +229,11 @@ def write_columns(path, columns, units):
 
 
 def save(fig, path, **kw):
-    """Write a matplotlib Figure (150 dpi) and return `path`."""
-    fig.savefig(path, dpi=150, **kw)
+    """Write a matplotlib Figure (150 dpi), every title wrapped inside it
+    (`rockjax._plotting.fit_titles`), and return `path`."""
+    from rockjax._plotting import fit_titles
+
+    fit_titles(fig).savefig(path, dpi=150, **kw)
     return path
 
 

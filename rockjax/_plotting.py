@@ -129,8 +129,9 @@ def plot_pushover(structure, curves=None, *, ax=None, title=None):
     ax.annotate(
         f"$u_{{crit}}$ = {1e3 * uc:.2f} mm\n$P_{{crit}}$ = {pc:.0f} N",
         (1e3 * uc, 1e-3 * pc),
-        xytext=(25, -5),
+        xytext=(25, -10),
         textcoords="offset points",
+        va="top",  # below the peak, which is the top of the frame
         fontsize=9,
     )
     ax.axvline(1e3 * uo, color="k", lw=0.8, ls=":")

@@ -69,3 +69,17 @@ def test_the_command_line_saves_every_figure_with_its_titles_inside(tmp_path):
     ax.set_title(LONG)
     path = save(fig, tmp_path / "plot.png")
     assert path.stat().st_size > 0 and _plotting.titles_inside(fig) == []
+
+
+@pytest.mark.parametrize("changes", [{}, {"B": 0.6, "H_e": 0.5}, {"B": 0.1, "k_f": 5e6}])
+def test_the_pushover_labels_stay_inside_the_frame(column, changes):
+    """The u_crit / P_crit and u_overturn labels of the pushover lie inside its axes (the
+    u_crit label ran over the top of the frame), for slender and squat structures."""
+    fig = _plotting.plot_pushover(column.replace(**changes))
+    renderer = _plotting._drawn(fig)
+    ax = fig.axes[0]
+    frame = ax.get_window_extent(renderer)
+    for t in ax.texts:
+        e = t.get_window_extent(renderer)
+        assert frame.x0 <= e.x0 and e.x1 <= frame.x1 and frame.y0 <= e.y0 and \
+            e.y1 <= frame.y1, t.get_text()

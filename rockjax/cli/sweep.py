@@ -44,6 +44,7 @@ from ._common import (
     load_structure,
     MAX_STEPS,
     model_info,
+    model_line,
     positive_float,
     positive_int,
     RECORD_FLAGS,
@@ -341,8 +342,8 @@ def run(args):
     if args.plot:
         end = "its end + tail" if args.t1 is None else f"min(end + tail, {args.t1:g} s)"
         save(plot_sweeps(sweep.results, sweep.struct_labels, title=f"{sweep.runs}, each record "
-                         f"to {end}, {args.model} model, impact rule {args.impact}, "
-                         f"{args.method}"), args.plot)
+                         f"to {end}, {model_line(model_info(args))}, {args.method}"),
+             args.plot)
     if args.json:
         print(json.dumps(sweep_json(args, sweep)))
         return 0

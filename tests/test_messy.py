@@ -266,3 +266,18 @@ def test_command_line_names_the_override(tmp_path, capsys):
                  ["sweep", "--record", "x.AT2"]):
         assert parser.parse_args(argv).check_plausible is True
         assert parser.parse_args([*argv, "--no-plausibility-check"]).check_plausible is False
+
+
+def test_time_tolerance_on_the_command_line(tmp_path):
+    """`--time-tolerance` loosens the jitter a record's time column may have: refused by
+    default naming the option, resampled (with its warning) when allowed."""
+    from conftest import run_cli
+
+    path = tmp_path / "jitter.csv"
+    path.write_text(messy.jittered(5e-3))
+    args = ("simulate", "--record", str(path), "--t1", "0.5", "--json")
+    r = run_cli(*args, cwd=tmp_path)
+    assert r.returncode == 2 and "--time-tolerance" in r.stderr
+    r = run_cli(*args, "--time-tolerance", "0.02", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "ResampledWarning" in r.stderr or "resampled" in r.stderr

@@ -31,7 +31,8 @@ COMMON_FLAGS = {"r": "--r", "impact": "--impact", "model": "--model", "t1": "--t
                 "method": "--method", "substeps": "--substeps",
                 "check_plausible": "--no-plausibility-check"}
 #: the options of a ground-motion record (read_record's and GroundMotion's parameters)
-RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale"}
+RECORD_FLAGS = {"units": "--units", "dt": "--record-dt", "scale": "--scale",
+                "time_tolerance": "--time-tolerance"}
 #: the units of acceleration a record may be in (`rockjax.UNITS`), for --units' help
 RECORD_UNITS_METAVAR = "{" + ",".join(rockjax.UNITS["acceleration"]) + "}"
 #: the fidelity warning's advice in CLI syntax
@@ -190,6 +191,15 @@ def load_structure(path, check_plausible=True):
 
 #: the option that turns off the readers' plausibility checks (check_plausible=False)
 PLAUSIBILITY_FLAG = "--no-plausibility-check"
+
+
+def add_time_tolerance_argument(parser):
+    """--time-tolerance: how far a record's time column may jitter (`read_record`)."""
+    parser.add_argument(
+        "--time-tolerance", type=positive_float("--time-tolerance"), default=1e-3,
+        metavar="FRACTION", help="a two-column record whose time steps differ from their "
+        "median by at most this fraction of the step is resampled onto a uniform step, with "
+        "a warning; beyond it, refused (default 0.001)")
 
 
 def add_plausibility_argument(parser):

@@ -16,6 +16,7 @@ from ._common import (
     add_model_arguments,
     add_outputs,
     add_structure_argument,
+    add_time_tolerance_argument,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
@@ -56,6 +57,7 @@ def add_parser(subparsers):
                    help="scale factor on the record (default 1)")
     m.add_argument("--record-dt", type=positive_float("--record-dt"), metavar="DT",
                    help="sample step [s] of a one-column record")
+    add_time_tolerance_argument(m)
     m.add_argument("--t1", type=positive_float("--t1"), metavar="T",
                    help="end time [s] (default: 4 s, or the record's length)")
     add_model_arguments(m, "model of the fidelity ladder (default simplified)")
@@ -78,7 +80,8 @@ def _build_excitation(args, s):
         return (rockjax.FreeVibration(args.u0, args.v0), None,
                 {"type": "free_vibration", "u0": args.u0, "v0": args.v0})
     rec = rockjax.read_record(args.record, units=args.units, dt=args.record_dt,
-                              check_plausible=args.check_plausible)
+                              check_plausible=args.check_plausible,
+                              time_tolerance=args.time_tolerance)
     gm = rockjax.GroundMotion.from_record(rec, scale=args.scale)
     return gm, gm, {"type": "ground_motion", **record_info(rec, args.scale)}
 

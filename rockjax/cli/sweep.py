@@ -33,6 +33,7 @@ from ._common import (
     add_model_arguments,
     add_outputs,
     add_plausibility_argument,
+    add_time_tolerance_argument,
     check_outputs,
     CLIError,
     COMMON_FLAGS,
@@ -114,6 +115,7 @@ def add_input_arguments(w, structure="structure file, repeatable (default: Table
         "are refused")
     w.add_argument("--record-dt", type=positive_float("--record-dt"), metavar="DT",
                    help="sample step [s] of the one-column records (the others state their own)")
+    add_time_tolerance_argument(w)
     w.add_argument("--scales", type=scale_list, default=None if scales else [1.0],
                    required=bool(scales), metavar="LIST|START:STOP:N",
                    help=scales or 'scale factors: a comma list such as "0.5,1,1.5" or a range '
@@ -173,7 +175,8 @@ def _record_specs(inputs):
     return specs, default
 
 
-def _read_records(specs, default_units, record_dt, check_plausible=True):
+def _read_records(specs, default_units, record_dt, check_plausible=True,
+                  time_tolerance=1e-3):
     """The records, read with the units given for each (else --units before any
     --record, else the file's) and --record-dt for the one-column ones; errors in CLI
     syntax."""
@@ -183,7 +186,8 @@ def _read_records(specs, default_units, record_dt, check_plausible=True):
             one_col = record_dt is not None and record_format(spec.path) == "one_column"
             records.append(rockjax.read_record(spec.path, units=spec.units or default_units,
                                                dt=record_dt if one_col else None,
-                                               check_plausible=check_plausible))
+                                               check_plausible=check_plausible,
+                                               time_tolerance=time_tolerance))
         except (ValueError, OSError) as e:
             hint = ""
             if spec.folder is not None and getattr(e, "param", None) == "units":
@@ -228,7 +232,8 @@ def read_sweep(args):
     structures, struct_labels = _sweep_structures(args.structure, args.check_plausible)
     specs, default_units = _record_specs(args.inputs)
     specs, skipped = expand_folders(specs)
-    records = _read_records(specs, default_units, args.record_dt, args.check_plausible)
+    records = _read_records(specs, default_units, args.record_dt, args.check_plausible,
+                            args.time_tolerance)
     try:
         grid = common_time_step([r.dt for r in records],
                                 names=[pathlib.Path(s.path).name for s in specs])

@@ -38,7 +38,7 @@ _FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m",
 _SENSOR = ("offset", "offset_uplift", "drift")
 _PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
-_CHANNELS = ("t", "u", "uplift")
+_CHANNELS = ("t", "u", "uplift", "theta")
 
 
 def _channel_map(option):

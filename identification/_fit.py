@@ -138,7 +138,8 @@ def fit_decay(
 
     **Arguments:**
 
-    - `trace`: an `identification.DecayTrace` (t [s], u [m], optional uplift [m]).
+    - `trace`: an `identification.DecayTrace` (t [s] and any of u [m], theta [rad],
+      uplift [m]).
     - `structure`: the `rockjax.RockingStructure` (geometry, masses; default Table 1). Its
       `k_f` and `restitution` (Eq. 3) are the starting values of `k_f` and `r`.
     - `params`: the parameters to fit, any of `"k_f"`, `"r"`, `"u0"` (release displacement

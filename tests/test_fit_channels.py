@@ -126,3 +126,21 @@ def test_release_in_the_rotation(column, motion):
     assert rel.time == pytest.approx(1.0, abs=0.01)
     assert rel.level == pytest.approx(float(rockjax.theta_from_u(column, U0)), rel=0.01)
     assert "level_rad" in rel.as_dict()
+
+
+def test_cli_reads_a_rotation_column(column, motion, tmp_path, capsys):
+    """`rockjax fit --columns t=t,theta=NAME` fits the rotation (in degrees here); the
+    report gives the rms residual in rad. In process: the rotation fit above compiled it."""
+    t, u, theta, up = motion
+    csv = tmp_path / "rot.csv"
+    csv.write_text("t,Winkel_deg,other\n" + "".join(
+        f"{a:.6f},{np.degrees(b):.9f},0\n" for a, b in zip(t, theta)))
+    from rockjax.cli import main
+
+    rc = main(["fit", str(csv), "--columns", "t=t,theta=Winkel_deg"], compile_cache=False)
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "theta = column 'Winkel_deg' in deg (header)" in out
+    assert "offset_theta" in out and " rad  (noise sigma estimate" in out
+    k_f = float(next(ln.split()[1] for ln in out.splitlines() if ln.startswith("k_f ")))
+    assert k_f == pytest.approx(float(column.k_f), rel=0.02)

@@ -34,8 +34,8 @@ FLAGS = {**COMMON_FLAGS, "structure": "--structure", "columns": "--columns",
          "units": "--units", "drop_nan": "--drop-nan", "contact": "--contact", "c_f": "--c-f",
          "starts": "--starts", "params": "--params"}
 _FIT_UNITS = {"k_f": "N/m", "r": "-", "u0": "m", "t0": "s", "c_f": "N s/m",
-              "offset": "m", "offset_uplift": "m", "drift": "m/s"}  # + the sensor's
-_SENSOR = ("offset", "offset_uplift", "drift")
+              "offset": "m", "offset_uplift": "m", "drift": "m/s", "offset_theta": "rad"}
+_SENSOR = ("offset", "offset_uplift", "drift", "offset_theta")
 _PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
 _CHANNELS = ("t", "u", "uplift", "theta")
@@ -159,6 +159,11 @@ def fit_value_table(fit, truth=None):
     return "\n".join(lines)
 
 
+def _rms_unit(fit):
+    """The unit of `fit.rms` and `fit.sigma`: of its first channel (rad for a rotation)."""
+    return "rad" if getattr(fit, "channels", ("u",))[:1] == ("theta",) else "m"
+
+
 def _corr_lines(fit, rho_of):
     return [f"{f'corr(k_f, {o})':<13} {rho:+.4f}" for o in ("r", "c_f")
             if (rho := rho_of(o)) is not None]
@@ -178,7 +183,8 @@ def fit_stats_lines(fit):
     closing = _closing_lines(fit)
     return [*_corr_lines(fit, lambda o: fit.identifiability.get(f"corr_k_f_{o}")),
             _LOSS.format(fit.loss),
-            f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)",
+            f"rms residual  {fit.rms:.4g} {_rms_unit(fit)}  (noise sigma estimate "
+            f"{fit.sigma:.3g} {_rms_unit(fit)})",
             closing[0], lack_of_fit_line(fit.lack_of_fit), *closing[1:]]
 
 
@@ -206,7 +212,8 @@ def trace_lines(info):
     out = [f"{info['file']}: {chans}",
            f"dt {info['dt_s']:.6g} s, {info['n_points']} points, {info['duration_s']:.6g} s "
            f"(t = {info['t_start_s']:.6g} .. {info['t_end_s']:.6g} s), "
-           f"max |u| {info['max_abs_u_m']:.4g} m"]
+           + (f"max |u| {info['max_abs_u_m']:.4g} m" if info["max_abs_u_m"] is not None
+              else "no u")]
     if info["dropped_nan_rows"]:
         out.append(f"{info['dropped_nan_rows']} row(s) with missing values dropped (--drop-nan)")
     return out
@@ -216,8 +223,10 @@ def release_line(fit):
     """Where the release was found, and the t0 the fit used."""
     rel = fit.release
     if rel["held"]:
-        found = (f"detected at t = {rel['release_time_s']:.6g} s, after a hold at "
-                 f"u = {rel['level_m']:.6g} m (noise sigma {rel['noise_sigma_m']:.3g} m)")
+        ch, unit = rel.get("channel", "u"), "rad" if "level_rad" in rel else "m"
+        found = (f"detected at t = {rel['release_time_s']:.6g} s, after a hold at {ch} = "
+                 f"{rel['level_' + unit]:.6g} {unit} (noise sigma "
+                 f"{rel['noise_sigma_' + unit]:.3g} {unit})")
     else:
         found = (f"at the first sample, t = {rel['release_time_s']:.6g} s (no hold before "
                  "the motion)")

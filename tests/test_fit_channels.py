@@ -144,3 +144,17 @@ def test_cli_reads_a_rotation_column(column, motion, tmp_path, capsys):
     assert "offset_theta" in out and " rad  (noise sigma estimate" in out
     k_f = float(next(ln.split()[1] for ln in out.splitlines() if ln.startswith("k_f ")))
     assert k_f == pytest.approx(float(column.k_f), rel=0.02)
+
+
+def test_plot_of_a_rotation_fit(column, motion):
+    """`plot_fit` draws the channels the trace has (a rotation alone: in mrad)."""
+    t, u, theta, up = motion
+    tr = identification.DecayTrace(t=t, theta=theta)
+    fit = _fit(column, t=t, theta=theta)  # compiled above: no new compile
+    from rockjax._plotting import plot_fit  # what `rockjax fit --plot` draws
+
+    fig = plot_fit(tr, fit)
+    axes = fig.get_axes()
+    assert len(axes) == 2 and axes[0].get_ylabel() == "rotation θ [mrad]"
+    assert axes[1].get_ylabel() == "residual [mrad]"
+    assert "mrad, converged" in axes[0].get_title()

@@ -344,6 +344,10 @@ CASES: list[Case] = [
          Truth(predicate=_rotation_read), "rotation as displacement",
          "TraceError: not a time, displacement or uplift column; name the columns with "
          "columns= (which reads the rotation as a displacement)"),
+    Case("tr_theta_plain_deg.csv", "trace", trace_csv("t,theta", u_factor=math.pi / 180),
+         Truth(error="TraceError", match=r"a rotation of 4\.58\d* rad .* name it theta_deg"),
+         "rotation in degrees under a plain title",
+         "TraceError: 'theta' is a rotation, not a displacement"),
     Case("tr_columns_u_theta.csv", "trace", trace_csv("t,theta_rad"),
          Truth(error="TraceError", match=r"'theta_rad' is a rotation"),
          "rotation as displacement", "rotation fitted as a displacement",

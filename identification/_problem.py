@@ -412,6 +412,10 @@ def setup(trace, structure, params, settings: Settings = Settings()) -> Problem:
     params = tuple(p for p in params if p not in NUISANCE) + nuisance
     notes = notes + tuple(sensor_notes)
     values0, k_min = _starting_values(structure, release, st.initial, fm, params)
+    if primary != "u" and "u0" not in params and "u0" not in (st.initial or {}):
+        notes = notes + (f"u0 held at {values0['u0']:.6g} m: the release level of the "
+                         f"{primary} channel mapped to u through the structure's kinematics "
+                         "at its starting k_f (fit u0, or give it in initial)",)
     return Problem(
         structure=structure, params=params, fit_model=fm, impact=st.impact,
         horizons=horizons, starts=starts, max_iter=st.max_iter, tol=st.tol,

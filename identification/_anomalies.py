@@ -41,17 +41,19 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def find_clipping(t, u, sigma: float) -> list[dict]:
+def find_clipping(t, u, sigma: float, sides=("upper", "lower")) -> list[dict]:
     """The clipped plateaus of `u`, one dict per side (`level` [m], `side`, `plateaus`:
     (first, last) sample indices, `n_samples`, `times` [s] of each plateau); empty if none.
     `sigma`: the noise std of the trace (an exactly constant initial hold in a noisy trace
-    is clipping too)."""
+    is clipping too). `sides`: those to look at (an uplift, 0 in contact, only the upper)."""
     u = np.asarray(u, float)
     t = np.asarray(t, float)
     amp = float(np.max(np.abs(u)))
     tol = 1e-9 * amp
     out = []
     for side, level in (("upper", float(np.max(u))), ("lower", float(np.min(u)))):
+        if side not in sides:
+            continue
         runs = [(a, b) for a, b in _runs(np.abs(u - level) <= tol) if b - a >= MIN_RUN]
         later = [r for r in runs if r[0] > 0]
         noisy_hold = bool(runs and runs[0][0] == 0 and sigma > 1e-6 * amp)
@@ -93,9 +95,9 @@ def find_second_release(t, u, release) -> int | None:
 
 
 def _segment(trace: DecayTrace, a: int, b: int, k: int) -> DecayTrace:
-    up = None if trace.uplift is None else np.asarray(trace.uplift)[a:b]
+    cut = {c: np.asarray(getattr(trace, c))[a:b] for c in trace.channels}
     src = f"{trace.source or 'trace'} [release {k}: samples {a}..{b - 1}]"
-    return DecayTrace(np.asarray(trace.t)[a:b], np.asarray(trace.u)[a:b], up, source=src)
+    return DecayTrace(np.asarray(trace.t)[a:b], source=src, **cut)
 
 
 def split_releases(trace: DecayTrace) -> list[DecayTrace]:
@@ -107,7 +109,7 @@ def split_releases(trace: DecayTrace) -> list[DecayTrace]:
     out, start = [], 0
     while True:
         seg = _segment(trace, start, trace.n, len(out) + 1) if start else trace
-        k = find_second_release(seg.t, seg.u, detect_release(seg))
+        k = find_second_release(seg.t, getattr(seg, seg.channels[0]), detect_release(seg))
         if k is None:
             out.append(seg)
             return out
@@ -117,15 +119,18 @@ def split_releases(trace: DecayTrace) -> list[DecayTrace]:
 
 def check_trace(trace: DecayTrace, release):
     """TraceError if the trace is clipped or holds a second release (module docstring)."""
-    t, u = np.asarray(trace.t, float), np.asarray(trace.u, float)
-    clipped = find_clipping(t, u, release.sigma)
+    ch = getattr(release, "channel", "u")  # the channel the release was found in
+    t, u = np.asarray(trace.t, float), np.asarray(getattr(trace, ch), float)
+    unit = "mrad" if ch == "theta" else "mm"
+    clipped = find_clipping(t, u, release.sigma,
+                            ("upper",) if ch == "uplift" else ("upper", "lower"))
     if clipped:
         parts = []
         for c in clipped:
             spans = ", ".join(f"{a:.4g}-{b:.4g} s" for a, b in c["times"][:4])
             more = f" and {len(c['times']) - 4} more" if len(c["times"]) > 4 else ""
             first = ", ".join(f"{a}..{b}" for a, b in c["plateaus"][:4])
-            parts.append(f"at {1e3 * c['level']:+.4g} mm ({c['side']}): {c['n_samples']} "
+            parts.append(f"at {1e3 * c['level']:+.4g} {unit} ({c['side']}): {c['n_samples']} "
                          f"samples in {len(c['plateaus'])} plateau(s), t = {spans}{more} "
                          f"(samples {first})")
         msg = ("the trace is clipped (the sensor saturated) " + "; ".join(parts) + ": the "

@@ -127,6 +127,7 @@ def fit_decay(
     offset=None,
     drift: bool = False,
     uplift_weight: float = 1.0,
+    theta_weight: float = 1.0,
     optimizer=None,
     schedule: Schedule | None = None,
     integrator=None,
@@ -137,7 +138,8 @@ def fit_decay(
 
     **Arguments:**
 
-    - `trace`: an `identification.DecayTrace` (t [s], u [m], optional uplift [m]).
+    - `trace`: an `identification.DecayTrace` (t [s] and any of u [m], theta [rad],
+      uplift [m]).
     - `structure`: the `rockjax.RockingStructure` (geometry, masses; default Table 1). Its
       `k_f` and `restitution` (Eq. 3) are the starting values of `k_f` and `r`.
     - `params`: the parameters to fit, any of `"k_f"`, `"r"`, `"u0"` (release displacement
@@ -167,6 +169,12 @@ def fit_decay(
       model instance, at 5 % of critical damping of the vertical mode,
       $0.05\sqrt{2k_f(m_e+m_b)}$; held, at the model's damping (0 for "two_spring_2dof").
     - `uplift_weight`: weight of the uplift residuals (when the trace has them).
+    - `theta_weight`: weight of the rotation residuals (when the trace has them), which
+      are in units of the rotation's amplitude (u's and the uplift's: of u's amplitude).
+      A trace may hold any of u, theta and uplift: each is fitted through the model's
+      own observation of it (`rockjax.Response.u`, `.theta`, `.uplift`); without u the
+      release is found in the rotation (else the uplift) and u0 starts from its level
+      mapped through the structure's kinematics (`identification._problem`).
     - `offset`: fit the sensor's zero of each channel (`offset` [m] of the displacement,
       `offset_uplift` [m] of the uplift when fitted) as nuisance parameters: the model as
       the sensor reads it is $u(t) + o$ (`identification._sensor`). None (default): where
@@ -238,7 +246,8 @@ def fit_decay(
     settings = Settings(model=model, impact=impact, contact=contact, initial=initial,
                         starts=schedule.starts, max_iter=schedule.max_iter,
                         horizons=schedule.horizons, tol=schedule.tol,
-                        uplift_weight=uplift_weight, rtol=rtol, atol=atol, progress=progress,
+                        uplift_weight=uplift_weight, theta_weight=theta_weight, rtol=rtol,
+                        atol=atol, progress=progress,
                         offset=offset, drift=drift)
     if isinstance(model, str) and model == "auto":
         if isinstance(trace, (list, tuple)):
@@ -263,11 +272,12 @@ def fit_single(trace, structure, params, settings: Settings, optimizer=None) -> 
     for m in messages:
         warnings.warn(m, IdentifiabilityWarning, stacklevel=_WARN_LEVEL)
     response = observed(model, best.z)
-    msg = outlier_message(problem, np.asarray(response.u), run.keep, unc.sigma)
+    primary = np.asarray(getattr(response, problem.channels[0]))
+    msg = outlier_message(problem, primary, run.keep, unc.sigma)
     if msg is not None:
         messages.append(msg)
         warnings.warn(msg, OutlierWarning, stacklevel=_WARN_LEVEL)
-    lack = lack_of_fit(problem, np.asarray(response.u), run.keep)
+    lack = lack_of_fit(problem, primary, run.keep)
     if lack["fires"]:
         messages.append(lack["message"])
         warnings.warn(lack["message"], LackOfFitWarning, stacklevel=_WARN_LEVEL)

@@ -190,6 +190,9 @@ class _JointProblem:
 
 def _joint_problem(traces, structure, params, settings: Settings) -> _JointProblem:
     problems = tuple(setup(tr, structure, params, settings) for tr in traces)
+    if any(pb.channels[0] != "u" or pb.fits_theta for pb in problems):
+        raise ValueError("a joint fit takes traces of u (and uplift): fit a trace with a "
+                         "rotation channel, or without u, on its own")
     if len({pb.params for pb in problems}) > 1:  # the offset pinned in some traces only
         settings = dataclasses.replace(settings, offset=True)
         problems = tuple(setup(tr, structure, params, settings) for tr in traces)

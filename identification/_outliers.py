@@ -19,6 +19,7 @@ import numpy as np
 import rockjax
 
 from ._problem import Problem
+from ._release import _noise_sigma
 from ._residuals import channels, observed, TraceModel
 
 OUTLIER_SIGMAS = 6.0
@@ -34,11 +35,16 @@ def gross_spikes(problem: Problem) -> np.ndarray:
     max(GROSS_SIGMAS noise sigma, 5 % of the amplitude) from the 5-point running median."""
     out = np.zeros(problem.t.size, bool)
     sigma = float(problem.release.sigma)
-    for x in (problem.u_meas, problem.up_meas if problem.fits_uplift else None):
+    for ch in problem.channels:
+        x = problem.measured(ch)
         if x is None or x.size < 5:
             continue
         pad = np.pad(x, 2, mode="edge")
         med = np.median(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
+        if ch == "theta":  # its own units: sigma and amplitude of the rotation
+            s_ch = sigma if problem.primary == "theta" else _noise_sigma(x)
+            out |= np.abs(x - med) > max(GROSS_SIGMAS * s_ch, 0.05 * problem.theta_scale)
+            continue
         out |= np.abs(x - med) > max(GROSS_SIGMAS * sigma, 0.05 * problem.scale)
     return out
 MAX_OUTLIER_FRACTION = 0.05
@@ -111,13 +117,16 @@ def outlier_message(problem: Problem, u_fit: np.ndarray, keep: np.ndarray,
     outliers = np.flatnonzero(~keep)
     if not outliers.size:
         return None
-    t, u_meas = problem.t, problem.u_meas
+    ch = problem.channels[0]
+    t, u_meas = problem.t, problem.measured(ch)
     worst = outliers[np.argmax(np.abs(u_fit - u_meas)[outliers])]
+    what, unit = {"u": ("displacement", "m"), "theta": ("rotation", "rad"),
+                  "uplift": ("uplift", "m")}[ch]
     return (
         f"{outliers.size} sample(s) of the trace lie more than {OUTLIER_SIGMAS:g} robust "
-        f"standard deviations from the fit (largest displacement residual "
-        f"{abs(u_fit[worst] - u_meas[worst]):.3g} m at t = {t[worst]:.6g} s; noise "
-        f"sigma {sigma:.3g} m): they were left out and the fit repeated without them "
+        f"standard deviations from the fit (largest {what} residual "
+        f"{abs(u_fit[worst] - u_meas[worst]):.3g} {unit} at t = {t[worst]:.6g} s; noise "
+        f"sigma {sigma:.3g} {unit}): they were left out and the fit repeated without them "
         "(indices in FitResult.outliers)"
     )
 

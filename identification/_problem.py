@@ -1,4 +1,4 @@
-"""The fit's problem: the checked arguments of `fit_decay`, with the trace as arrays.
+r"""The fit's problem: the checked arguments of `fit_decay`, with the trace as arrays.
 
 `Settings` holds the keyword arguments of `fit_decay` (the same names, the same defaults);
 `setup(trace, structure, params, settings)` checks them with the trace and the structure
@@ -6,6 +6,15 @@
 model resolved (`identification._models`), the parameters to fit, the release found in
 the trace (`detect_release`), the starting (or held) values of every parameter and the
 bounds of k_f. Nothing here is traced or compiled.
+
+**Channels.** A trace may hold any of u [m], the rotation theta [rad] and the uplift [m];
+each is fitted through the model's own observation of it (`rockjax.Response.u`, `.theta`,
+`.uplift`). The first present (u, else theta, else the uplift) is the *primary* channel:
+the release is found in it, its residuals are the ones the lack-of-fit check and `rms`
+describe. u0 stays the release displacement [m]: without u, its start is the release level
+of the primary channel mapped through the kinematics of the structure at its starting k_f
+(`rockjax.u_from_theta`; for the uplift, $\sin\theta = (\mathrm{uplift}/2 +
+\delta_0)/B$, the inverse of `rockjax.uplift_from_theta`).
 """
 
 from __future__ import annotations
@@ -47,6 +56,7 @@ class Settings:
     horizons: object = None
     tol: float = 1e-9
     uplift_weight: float = 1.0
+    theta_weight: float = 1.0
     rtol: float = 1e-9
     atol: float = 1e-11
     progress: object = None
@@ -76,14 +86,40 @@ class Problem:
     atol: float
     progress: object
     t: np.ndarray
-    u_meas: np.ndarray
+    u_meas: np.ndarray | None  # None: no displacement channel
     up_meas: np.ndarray | None
-    scale: float  # trace amplitude max |u| [m]: the unit of the residuals
+    scale: float  # trace amplitude max |u| [m] (or its equivalent): the unit of the residuals
     values0: dict  # starting (or fixed) values of all of PARAM_NAMES
     k_min: float  # stability limit of k_f (Eq. 15) [N/m]
     release: Release  # found in the trace (detect_release)
     k_cap: float | None = None  # the (smooth) upper bound of k_f, None: none
     notes: tuple = ()  # default parameters left out (they do not act in the model)
+    th_meas: np.ndarray | None = None  # measured rotation [rad], None: no such channel
+    theta_weight: float = 1.0
+    theta_scale: float = 1.0  # max |theta| [rad]: the unit of the rotation's residuals
+    primary: str = "u"  # the channel the release is found in, and that rms describes
+
+    @property
+    def fits_theta(self) -> bool:
+        """Whether the rotation channel is in the residuals."""
+        return self.th_meas is not None and self.theta_weight > 0
+
+    @property
+    def channels(self) -> tuple:
+        """The channels in the residuals, in their order (u, theta, uplift)."""
+        return tuple(c for c, on in (("u", self.u_meas is not None),
+                                     ("theta", self.fits_theta),
+                                     ("uplift", self.fits_uplift)) if on)
+
+    def measured(self, ch: str) -> np.ndarray:
+        """The measured channel `ch` (numpy)."""
+        return {"u": self.u_meas, "theta": self.th_meas, "uplift": self.up_meas}[ch]
+
+    def unit_of(self, ch: str) -> tuple[float, float]:
+        """(the scale, the weight) of channel `ch`'s residuals: (measured - model) x
+        weight / scale."""
+        return {"u": (self.scale, 1.0), "theta": (self.theta_scale, self.theta_weight),
+                "uplift": (self.scale, self.uplift_weight)}[ch]
 
     @property
     def t_ref(self) -> float:
@@ -136,7 +172,8 @@ def _check_params(params, fm: FitModel) -> tuple:
     return params
 
 
-def _check_options(starts, max_iter, impact, horizons, tol, uplift_weight) -> tuple:
+def _check_options(starts, max_iter, impact, horizons, tol, uplift_weight,
+                   theta_weight=1.0) -> tuple:
     """Check the optimiser and simulation options; returns `horizons` as a tuple of floats."""
     if not (isinstance(starts, int) and starts >= 1):
         raise ValueError(f"starts must be a positive integer, got {starts!r}")
@@ -152,7 +189,8 @@ def _check_options(starts, max_iter, impact, horizons, tol, uplift_weight) -> tu
         raise ValueError(
             f"horizons must be a non-empty sequence of fractions in (0, 1], got {horizons!r}"
         )
-    for name, val in (("tol", tol), ("uplift_weight", uplift_weight)):
+    for name, val in (("tol", tol), ("uplift_weight", uplift_weight),
+                      ("theta_weight", theta_weight)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
             raise ValueError(f"{name} must be a finite number >= 0, got {val!r}")
     return hs
@@ -161,28 +199,75 @@ def _check_options(starts, max_iter, impact, horizons, tol, uplift_weight) -> tu
 def as_trace(trace) -> DecayTrace:
     if isinstance(trace, DecayTrace):
         return trace
-    if not (hasattr(trace, "t") and hasattr(trace, "u")):
+    if not (hasattr(trace, "t") and any(hasattr(trace, c) for c in ("u", "theta", "uplift"))):
         raise ValueError(
             "trace must be an identification.DecayTrace (t [s], u [m], optional uplift "
-            f"[m]), got {type(trace).__name__}"
+            f"[m], optional theta [rad]), got {type(trace).__name__}"
         )
     # validated like a DecayTrace: finite, strictly increasing, no gaps, >= 10 samples
-    return DecayTrace(t=trace.t, u=trace.u, uplift=getattr(trace, "uplift", None),
+    return DecayTrace(t=trace.t, u=getattr(trace, "u", None),
+                      uplift=getattr(trace, "uplift", None),
+                      theta=getattr(trace, "theta", None),
                       source=str(getattr(trace, "source", "")))
 
 
 def _trace_arrays(trace: DecayTrace, params: tuple, structure):
-    """(t, u, uplift or None, amplitude max |u|) of the trace, checked to be fittable."""
+    """(t, u or None, uplift or None, amplitude max |u| [m]) of the trace, checked to be
+    fittable; without u, the amplitude is the displacement of the structure at the peak
+    of the primary channel (`u_equivalent`)."""
     t = np.asarray(trace.t, float)
-    u_meas = np.asarray(trace.u, float)
+    u_meas = None if trace.u is None else np.asarray(trace.u, float)
     up_meas = None if getattr(trace, "uplift", None) is None else np.asarray(trace.uplift, float)
     if t.size < max(10, len(params) + 2):
         raise ValueError(f"the trace has {t.size} samples: too few to fit {params}")
-    scale = float(np.max(np.abs(u_meas)))
-    if not scale > 0:
-        raise ValueError("the trace's displacement is zero everywhere: nothing to fit")
-    _check_amplitude(trace, scale, float(structure.u_overturn))
-    return t, u_meas, up_meas, scale
+    ch = trace.channels[0]
+    x = np.asarray(getattr(trace, ch), float)
+    peak = float(np.max(np.abs(x)))
+    if not peak > 0:
+        what = {"u": "displacement", "theta": "rotation", "uplift": "uplift"}[ch]
+        raise ValueError(f"the trace's {what} is zero everywhere: nothing to fit")
+    if ch == "u":
+        _check_amplitude(trace, peak, float(structure.u_overturn))
+        return t, u_meas, up_meas, peak
+    _check_equivalent(trace, ch, structure)
+    return t, u_meas, up_meas, u_equivalent(structure, ch, peak)
+
+
+def u_equivalent(structure, ch: str, x: float) -> float:
+    """The top displacement [m] of the structure (at its k_f) whose rotation is `x` [rad]
+    (`ch` "theta"), or whose uplift is `x` [m] (`ch` "uplift"; positive), or `x` itself."""
+    if ch == "u":
+        return float(x)
+    if ch == "uplift":
+        s = float((x / 2.0 + float(structure.delta_0)) / float(structure.B))
+        x = math.asin(min(max(s, 0.0), 1.0))
+    return float(rockjax.u_from_theta(structure, x))
+
+
+def _check_equivalent(trace: DecayTrace, ch: str, structure):
+    """TraceError when the primary channel (rotation, uplift) lies beyond the structure's
+    overturning (a rotation in degrees read as rad, an uplift in mm read as m)."""
+    x = np.pad(np.asarray(getattr(trace, ch), float), 2, mode="edge")
+    smooth = float(np.max(np.abs(np.median(
+        np.lib.stride_tricks.sliding_window_view(x, 5), axis=1))))
+    u_ot = float(structure.u_overturn)
+    if ch == "theta":
+        beyond = smooth > float(rockjax.theta_from_u(structure, u_ot))
+    else:
+        beyond = 2.0 * float(structure.B) < smooth or u_equivalent(structure, ch, smooth) > u_ot
+    if not beyond:
+        return
+    unit, frm = trace.units.get(ch, "SI"), trace.units_from.get(ch, "SI")
+    what = "rotation" if ch == "theta" else "uplift"
+    si = "rad" if ch == "theta" else "m"
+    raise TraceError(f"max |{ch}| = {smooth:.4g} {si} is beyond the {what} at which the "
+                     f"structure overturns (u_overturn = {u_ot:.4g} m): is the {what} in "
+                     f"other units? (read in {unit}, {frm}; column "
+                     f"{trace.columns.get(ch, ch)!r})", param="units",
+                     value={ch: "deg" if ch == "theta" else "mm"},
+                     advice="; give units in the header, or pass {}",
+                     python="; give units in the header, or read it with read_trace(path, "
+                     f"units={{{ch!r}: {'deg' if ch == 'theta' else 'mm'!r}}})")
 
 
 def _check_amplitude(trace: DecayTrace, amplitude: float, u_overturn: float):
@@ -209,12 +294,31 @@ def _check_amplitude(trace: DecayTrace, amplitude: float, u_overturn: float):
                      "read_trace(path, units={'u': 'mm'})")
 
 
+def _release_u0(structure, release: Release, initial) -> float:
+    """The start of u0 [m]: the release level, mapped to u when found in the rotation or
+    the uplift (TraceError when the uplift at the release is ~0: no lift-off to map,
+    unless `initial` gives u0 and t0)."""
+    ch = release.channel
+    if ch == "u":
+        return float(release.level)
+    if ch == "uplift" and not release.level > release.threshold:
+        if initial and "u0" in initial and "t0" in initial:
+            return float(initial["u0"])
+        raise TraceError(
+            f"the release cannot be found in the uplift: it reads {release.level:.3g} m "
+            f"at the release found (t = {release.time:.4g} s), within the noise "
+            f"({release.threshold:.3g} m): an uplift-only trace must start lifted (a release "
+            "beyond u_crit). Give the release as initial={'u0': U0_m, 't0': T0_s}",
+            param="initial", python="")
+    return math.copysign(u_equivalent(structure, ch, abs(release.level)), release.level)
+
+
 def _starting_values(structure, release: Release, initial, fm: FitModel, params: tuple):
     """(starting values of all of PARAM_NAMES, the stability limit k_min of k_f)."""
     values0 = {
         "k_f": float(structure.k_f),
         "r": float(structure.restitution),
-        "u0": float(release.level),
+        "u0": _release_u0(structure, release, initial),
         "t0": float(release.time),
         **dict.fromkeys(NUISANCE, 0.0),
     }
@@ -288,21 +392,36 @@ def setup(trace, structure, params, settings: Settings = Settings()) -> Problem:
     horizons = _models.default_horizons(fm) if st.horizons is None else st.horizons
     starts = _models.default_starts(fm) if st.starts is None else st.starts
     horizons = _check_options(starts, st.max_iter, st.impact, horizons, st.tol,
-                              st.uplift_weight)
+                              st.uplift_weight, st.theta_weight)
     trace = as_trace(trace)
     t, u_meas, up_meas, scale = _trace_arrays(trace, params, structure)
     release = detect_release(trace)
     _anomalies.check_trace(trace, release)  # TraceError: clipped, or a second release
     fits_uplift = up_meas is not None and st.uplift_weight > 0
-    nuisance, sensor_notes = _sensor.choose(params, st.offset, st.drift, fits_uplift, t,
-                                            u_meas, release)
+    th_meas = None if trace.theta is None else np.asarray(trace.theta, float)
+    fitted = tuple(c for c, on in (("u", u_meas is not None),
+                                   ("theta", th_meas is not None and st.theta_weight > 0),
+                                   ("uplift", fits_uplift)) if on)
+    if not fitted:
+        raise ValueError("no channel to fit: the trace's channels "
+                         f"({', '.join(trace.channels)}) all have weight 0")
+    primary = release.channel
+    nuisance, sensor_notes = _sensor.choose(params, st.offset, st.drift, fitted, t,
+                                            np.asarray(getattr(trace, primary), float),
+                                            release)
     params = tuple(p for p in params if p not in NUISANCE) + nuisance
     notes = notes + tuple(sensor_notes)
     values0, k_min = _starting_values(structure, release, st.initial, fm, params)
+    if primary != "u" and "u0" not in params and "u0" not in (st.initial or {}):
+        notes = notes + (f"u0 held at {values0['u0']:.6g} m: the release level of the "
+                         f"{primary} channel mapped to u through the structure's kinematics "
+                         "at its starting k_f (fit u0, or give it in initial)",)
     return Problem(
         structure=structure, params=params, fit_model=fm, impact=st.impact,
         horizons=horizons, starts=starts, max_iter=st.max_iter, tol=st.tol,
         uplift_weight=st.uplift_weight, rtol=st.rtol, atol=st.atol, progress=st.progress,
         t=t, u_meas=u_meas, up_meas=up_meas, scale=scale, values0=values0, k_min=k_min,
         release=release, notes=notes, k_cap=_models.k_f_cap(fm, k_min),
+        th_meas=th_meas, theta_weight=st.theta_weight, primary=primary,
+        theta_scale=1.0 if th_meas is None else max(float(np.max(np.abs(th_meas))), 1e-300),
     )

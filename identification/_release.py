@@ -3,7 +3,10 @@
 A lab trace often starts before the release: the structure held at its initial
 displacement for a while, or a logger clock that does not start at 0. `detect_release`
 finds the end of the initial plateau (noise-aware) and refines the release time by fitting
-``u0 - c (t - t0)^2`` to the start of the motion.
+``u0 - c (t - t0)^2`` to the start of the motion. It works on the first channel of the
+motion the trace has (`DecayTrace.channels`: u, else the rotation theta, else the uplift):
+released from rest, each of them starts as that parabola (the uplift, non-negative, from
+its level at the release down towards the landing).
 """
 
 from __future__ import annotations
@@ -33,12 +36,14 @@ class Release:
       hold (``held``), else the first sample's time.
     - ``estimate`` [s]: the release time fitted to the start of the motion.
     - ``index``: the last sample of the initial plateau, before the signal departs from it.
-    - ``level`` [m]: the displacement at the release: the fitted plateau level when
-      ``held``, else the first sample.
-    - ``sigma`` [m]: the noise standard deviation used; ``threshold`` [m]: the departure
-      threshold (``RELEASE_SIGMAS`` sigma).
+    - ``level`` [m, or rad for ``channel`` theta]: the channel's value at the release:
+      the fitted plateau level when ``held``, else the first sample.
+    - ``sigma``: the noise standard deviation of the channel used; ``threshold``: the
+      departure threshold (``RELEASE_SIGMAS`` sigma); in the channel's unit.
     - ``held``: the trace starts with a hold (or a clock offset): ``estimate`` lies more
       than 3 sample steps after the first sample.
+    - ``channel``: the channel the release was found in (``"u"``, ``"theta"`` or
+      ``"uplift"``).
     """
 
     time: float
@@ -48,16 +53,21 @@ class Release:
     sigma: float
     threshold: float
     held: bool
+    channel: str = "u"
 
     def as_dict(self) -> dict:
-        """JSON-ready, keys with their units."""
-        return {"release_time_s": self.time, "estimate_s": self.estimate,
-                "plateau_last_index": self.index, "level_m": self.level,
-                "noise_sigma_m": self.sigma, "threshold_m": self.threshold,
-                "held": self.held}
+        """JSON-ready, keys with their units (``level_rad``, ``noise_sigma_rad``,
+        ``threshold_rad`` for a release found in the rotation; ``channel`` unless u)."""
+        unit = "rad" if self.channel == "theta" else "m"
+        out = {"release_time_s": self.time, "estimate_s": self.estimate,
+               "plateau_last_index": self.index, f"level_{unit}": self.level,
+               f"noise_sigma_{unit}": self.sigma, f"threshold_{unit}": self.threshold,
+               "held": self.held}
+        return out if self.channel == "u" else {**out, "channel": self.channel}
 
 
-def detect_release(trace: DecayTrace, *, sigmas: float = RELEASE_SIGMAS) -> Release:
+def detect_release(trace: DecayTrace, *, sigmas: float = RELEASE_SIGMAS,
+                   channel: str | None = None) -> Release:
     r"""Find where the free vibration of a decay trace starts (a :class:`Release`).
 
     Lab traces often start before the release: the structure held at its initial
@@ -81,8 +91,15 @@ def detect_release(trace: DecayTrace, *, sigmas: float = RELEASE_SIGMAS) -> Rele
     The trace starts with a hold when the release lies more than 3 steps after the first
     sample; otherwise it is taken to start at the release (``time`` = ``t[0]``, ``level`` =
     ``u[0]``).
+
+    `channel`: the channel to find it in (``"u"``, ``"theta"``, ``"uplift"``); default the
+    first the trace has (`DecayTrace.channels`).
     """
-    t, u = np.asarray(trace.t), np.asarray(trace.u)
+    channel = trace.channels[0] if channel is None else channel
+    if getattr(trace, channel, None) is None:
+        raise ValueError(f"detect_release: the trace has no {channel!r} channel (it has "
+                         f"{', '.join(trace.channels)})")
+    t, u = np.asarray(trace.t), np.asarray(getattr(trace, channel))
     dt = float(np.median(np.diff(t)))
     sigma = _noise_sigma(u)
     k, level, thr = _plateau(u, sigma, sigmas)
@@ -97,7 +114,7 @@ def detect_release(trace: DecayTrace, *, sigmas: float = RELEASE_SIGMAS) -> Rele
     held = bool(est - t[0] > _HOLD_STEPS * dt)
     return Release(time=est if held else float(t[0]), estimate=est, index=k,
                    level=fitted_level if held else float(u[0]), sigma=sigma,
-                   threshold=thr, held=held)
+                   threshold=thr, held=held, channel=channel)
 
 
 def _noise_sigma(u: np.ndarray) -> float:

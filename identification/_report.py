@@ -38,12 +38,18 @@ def _closing_lines(fit):
             + [f"note: {n}" for n in fit.notes] + [f"warning: {w}" for w in fit.warnings])
 
 
+def _rms_unit(fit):
+    """The unit of `fit.rms` and `fit.sigma`: of its first channel (rad for a rotation)."""
+    return "rad" if getattr(fit, "channels", ("u",))[:1] == ("theta",) else "m"
+
+
 def stats_lines(fit) -> list[str]:
     """Correlation, loss, rms residual, convergence, lack of fit, notes and warnings."""
     closing = _closing_lines(fit)
     return [*_corr_lines(lambda o: fit.identifiability.get(f"corr_k_f_{o}")),
             _LOSS.format(fit.loss),
-            f"rms residual  {fit.rms:.4g} m  (noise sigma estimate {fit.sigma:.3g} m)",
+            f"rms residual  {fit.rms:.4g} {_rms_unit(fit)}  (noise sigma estimate "
+            f"{fit.sigma:.3g} {_rms_unit(fit)})",
             closing[0], lack_of_fit_line(fit.lack_of_fit), *closing[1:]]
 
 
@@ -66,8 +72,10 @@ def release_line(fit) -> str:
     """Where the release was found, and the t0 the fit used."""
     rel = fit.release
     if rel["held"]:
-        found = (f"detected at t = {rel['release_time_s']:.6g} s, after a hold at "
-                 f"u = {rel['level_m']:.6g} m (noise sigma {rel['noise_sigma_m']:.3g} m)")
+        ch, unit = rel.get("channel", "u"), "rad" if "level_rad" in rel else "m"
+        found = (f"detected at t = {rel['release_time_s']:.6g} s, after a hold at {ch} = "
+                 f"{rel['level_' + unit]:.6g} {unit} (noise sigma "
+                 f"{rel['noise_sigma_' + unit]:.3g} {unit})")
     else:
         found = (f"at the first sample, t = {rel['release_time_s']:.6g} s (no hold before "
                  "the motion)")

@@ -5,9 +5,10 @@ of the fidelity ladder (`identification._models`); before $t_0$ the structure is
 $u_0$. Since it is released at rest, the model is continuously differentiable in $t_0$ (the
 velocity is 0 on both sides of the release), and every sample is defined wherever $t_0$
 lies: samples before it (a hold) inform $u_0$, the others all the parameters. The residuals
-are the differences between the model and the measured top displacement (and uplift, when
-the trace has that channel), scaled by the trace amplitude; their Jacobian is taken in
-forward mode.
+are the differences between the model and each channel the trace has, in the order top
+displacement u, rotation theta, uplift (`Response.u`, `.theta`, `.uplift`: the model's own
+observation of each), scaled by the trace amplitude (the rotation's by its own amplitude)
+and weighted (`uplift_weight`, `theta_weight`); their Jacobian is taken in forward mode.
 
 `TraceModel` holds the trace and the values as arrays, so that the compiled programs
 (`compiled`: `eqx.filter_jit`, kept on disk by `identification._aot` when JAX's persistent
@@ -45,7 +46,7 @@ class TraceModel(eqx.Module):
 
     structure: rockjax.RockingStructure
     t: jax.Array  # sample times [s]
-    u: jax.Array  # measured displacement [m]
+    u: jax.Array | None  # measured displacement [m], None: no such channel
     up: jax.Array | None  # measured uplift [m], None when not fitted
     values0: dict  # starting / fixed values of all of PARAM_NAMES
     k_min: jax.Array
@@ -56,18 +57,24 @@ class TraceModel(eqx.Module):
     k_span: jax.Array | None  # log(k_cap - k_min): the bound of k_f, None: unbounded
     uplift_weight: jax.Array
     model: object  # the model instance (its dashpot coefficient an array, set from c_f)
-    params: tuple = eqx.field(static=True)
-    dashpots: bool = eqx.field(static=True)  # the model has a dashpot coefficient (c_f)
-    impact: str = eqx.field(static=True)
-    rtol: float = eqx.field(static=True)
-    atol: float = eqx.field(static=True)
+    th: jax.Array | None = None  # measured rotation [rad], None when not fitted
+    theta_scale: jax.Array | float = 1.0  # its amplitude [rad]
+    theta_weight: jax.Array | float = 1.0
+    params: tuple = eqx.field(static=True, default=())
+    dashpots: bool = eqx.field(static=True, default=False)  # a dashpot coefficient (c_f)
+    impact: str = eqx.field(static=True, default="paper")
+    rtol: float = eqx.field(static=True, default=1e-9)
+    atol: float = eqx.field(static=True, default=1e-11)
 
     @classmethod
     def build(cls, pb: Problem) -> TraceModel:
         arr = jnp.asarray
         n = pb.t.size
         return cls(
-            structure=pb.structure, t=arr(pb.t), u=arr(pb.u_meas),
+            structure=pb.structure, t=arr(pb.t),
+            u=None if pb.u_meas is None else arr(pb.u_meas),
+            th=arr(pb.th_meas) if pb.fits_theta else None,
+            theta_scale=arr(float(pb.theta_scale)), theta_weight=arr(float(pb.theta_weight)),
             up=arr(pb.up_meas) if pb.fits_uplift else None,
             values0={k: arr(float(v)) for k, v in pb.values0.items()},
             k_min=arr(pb.k_min), scale=arr(pb.scale), t_ref=arr(pb.t_ref),
@@ -82,7 +89,7 @@ class TraceModel(eqx.Module):
     def decode(self, z) -> dict:
         """Unconstrained z (fitted params only) -> dict of all the natural values."""
         return _transforms.decode(z, self.params, self.values0, self.k_min, self.scale,
-                                  self.t_ref, self.k_span)
+                                  self.t_ref, self.k_span, self.theta_scale)
 
     def respond(self, z, t_end=None):
         """The model on the trace times: held at u0 before the release at t0, then
@@ -119,7 +126,10 @@ class TraceModel(eqx.Module):
         v = self.decode(z)
         res = self.respond(z, jnp.max(jnp.where(mask > 0, self.t, self.t[0])))
         s_u, s_up = self._sensor(v)
-        parts = [mask * (res.u + s_u - self.u) / self.scale]
+        parts = [] if self.u is None else [mask * (res.u + s_u - self.u) / self.scale]
+        if self.th is not None:
+            parts.append(mask * self.theta_weight * (res.theta + v["offset_theta"] - self.th)
+                         / self.theta_scale)
         if self.up is not None:
             parts.append(mask * self.uplift_weight * (res.uplift + s_up - self.up)
                          / self.scale)
@@ -129,8 +139,9 @@ class TraceModel(eqx.Module):
         return jnp.where(bad, 1e3, r), bad
 
     def residuals(self, z, mask):
-        """Masked residuals (displacement, then weighted uplift) in units of `scale`: the
-        model as the sensor reads it (its offsets and drift added) less the trace."""
+        """Masked residuals (displacement, then weighted rotation in units of its
+        amplitude, then weighted uplift) in units of `scale`: the model as the sensor reads
+        it (its offsets and drift added) less the trace; the channels the trace has."""
         return self._residuals_bad(z, mask)[0]
 
     def res_jac(self, z, mask):
@@ -148,12 +159,13 @@ class TraceModel(eqx.Module):
         J_p, (r, bad) = jax.jacfwd(part, has_aux=True)(z[jnp.asarray(phys)])
         n = self.t.shape[0]
         zero = jnp.zeros(n)
-        w = self.uplift_weight
-        cols = {
-            "offset": [mask] + ([zero] if self.up is not None else []),
-            "drift": [mask * (self.t - self.t_ref)] + ([zero] if self.up is not None else []),
-            "offset_uplift": [zero, mask * w],
-        }
+        here = {"u": self.u is not None, "theta": self.th is not None,
+                "uplift": self.up is not None}
+        acts = {"offset": ("u", mask), "drift": ("u", mask * (self.t - self.t_ref)),
+                "offset_theta": ("theta", mask * self.theta_weight),
+                "offset_uplift": ("uplift", mask * self.uplift_weight)}
+        cols = {p: [col if c == ch else zero for c in ("u", "theta", "uplift") if here[c]]
+                for p, (ch, col) in acts.items()}
         out, k = [], 0
         for p in self.params:
             if p in _transforms.LINEAR:
@@ -234,9 +246,12 @@ def observed(model: TraceModel, z):
 
 
 def channels(pb: Problem, response) -> list:
-    """Unmasked residual arrays of a response (numpy), one per fitted channel."""
-    out = [(np.asarray(response.u) - pb.u_meas) / pb.scale]
-    if pb.fits_uplift:
-        out.append(pb.uplift_weight * (np.asarray(response.uplift) - pb.up_meas) / pb.scale)
+    """Unmasked residual arrays of a response (numpy), one per fitted channel (order
+    `Problem.channels`)."""
+    out = []
+    for ch in pb.channels:
+        scale, w = pb.unit_of(ch)
+        x = np.asarray(getattr(response, ch)) - pb.measured(ch)
+        out.append(x / scale if ch == "u" else w * x / scale)
     return out
 

@@ -62,6 +62,8 @@ class FitResult:
       converged, k_f, seconds); empty otherwise.
     - `model`: the model fitted, in words; `notes`: default parameters left out because
       they do not act in it (r with continuous contact, say).
+    - `channels`: the channels of the trace fitted, in order ("u", "theta", "uplift");
+      without u, `rms` and `sigma` are of the first (the rotation [rad], the uplift [m]).
     """
 
     names: tuple
@@ -87,6 +89,7 @@ class FitResult:
     notes: tuple = ()
     start: dict = dataclasses.field(default_factory=dict)
     ranking: tuple = ()
+    channels: tuple = ("u",)
 
     @property
     def diagnosis(self) -> dict | None:
@@ -123,7 +126,8 @@ class FitResult:
         correlation, loss, converged, the release, the lack-of-fit check, the model fitted
         (`fitted_model`), notes, and `units` (of the parameters, `rms_residual` and
         `sigma`)."""
-        units = {**UNITS, "rms_residual": "m", "sigma": "m", "loss": "-"}
+        unit = "rad" if self.channels[:1] == ("theta",) else "m"
+        units = {**UNITS, "rms_residual": unit, "sigma": unit, "loss": "-"}
         return {
             "units": units,
             "values": dict(self.values),
@@ -148,6 +152,7 @@ class FitResult:
             "ranking": [dict(r) for r in self.ranking],
             "fitted_model": self.model,
             "notes": list(self.notes),
+            **({} if self.channels == ("u",) else {"channels": list(self.channels)}),
         }
 
 
@@ -155,7 +160,7 @@ class FitResult:
 def result(problem: Problem, run: Run, best: Best, unc: Uncertainty, ident: dict,
            messages: list, response, lack: dict) -> FitResult:
     params, vals_nat, loss, keep = problem.params, unc.values, best.loss, run.keep
-    u_fit = np.asarray(response.u)
+    u_fit = np.asarray(getattr(response, problem.channels[0]))
     converged = bool(run.converged[best.index]) and np.isfinite(loss) and loss < 1e5
     return FitResult(
         names=params,
@@ -165,7 +170,8 @@ def result(problem: Problem, run: Run, best: Best, unc: Uncertainty, ident: dict
                if p not in params and p in problem.fit_model.acting},
         correlation=np.asarray(unc.corr),
         loss=loss,
-        rms=float(np.sqrt(np.mean((u_fit - problem.u_meas)[keep] ** 2))),
+        rms=float(np.sqrt(np.mean((u_fit - problem.measured(problem.channels[0]))[keep]
+                                  ** 2))),
         sigma=unc.sigma,
         loss_history=best.history,
         start_losses=best.start_losses,
@@ -182,4 +188,5 @@ def result(problem: Problem, run: Run, best: Best, unc: Uncertainty, ident: dict
         model=problem.fit_model.describe(),
         notes=problem.notes,
         start={p: float(problem.values0[p]) for p in params},
+        channels=problem.channels,
     )

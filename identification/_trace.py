@@ -1,8 +1,8 @@
 """Measured (or synthetic) free-vibration decay traces: a container and a CSV reader.
 
-A decay trace is the top displacement ``u`` [m] of a structure released from an initial
-displacement, sampled at times ``t`` [s], optionally with the uplift of the lifted corner
-[m]. On disk it is a CSV file::
+A decay trace is the motion of a structure released from an initial displacement,
+sampled at times ``t`` [s]: any of its top displacement ``u`` [m], its rotation ``theta``
+[rad] and the uplift of the lifted corner [m] (at least one). On disk it is a CSV file::
 
     # any number of leading comment lines starting with '#'
     t,u,uplift
@@ -11,11 +11,13 @@ displacement, sampled at times ``t`` [s], optionally with the uplift of the lift
     ...
 
 **Header.** One name per column: time ``t`` or ``time``; displacement ``u``, ``disp`` or
-``displacement``; uplift ``uplift`` (optional); in any order, case-insensitive. Each name
+``displacement``; rotation ``theta``, ``rotation``, ``rot`` or ``tilt``; uplift
+``uplift``; in any order, case-insensitive; time and at least one of the others. Each name
 may carry its unit: ``time_s``, ``t_ms``, ``disp_mm``, ``u [mm]``, ``u (cm)``,
-``uplift[mm]``. Units of time: s, ms, us, min; of length: m, cm, mm, um, in (the table of
+``uplift[mm]``, ``theta_deg``, ``rot [mrad]``. Units of time: s, ms, us, min; of length:
+m, cm, mm, um, in; of angle: rad, mrad, deg (the table of
 :data:`rockjax.UNITS`, which also lists their other spellings, such as sec). A column
-without a unit is taken as SI (s, m). Values are converted to SI, and the trace records
+without a unit is taken as SI (s, m, rad). Values are converted to SI, and the trace records
 what was read (:meth:`DecayTrace.info`). ``read_trace(path, columns={"t": "Zeit", "u":
 "Weg_mm"})`` picks the columns by name instead (others are ignored), and ``units={"u":
 "mm"}`` gives units the header does not state.
@@ -27,8 +29,10 @@ tabs or blanks, with decimal points or decimal commas (``rockjax.datasets.read_t
 **Plausibility.** A median time step of 0.1 s or more (a time column in ms under a plain
 ``t`` title) and a displacement column in mm, cm or um that never reaches 1 mm (metres
 under a ``disp_mm`` title) are refused with a hint on the units, unless
-``check_plausible=False``. A rotation column (``theta``, ``rotation``, or in rad/deg) is
-refused as a displacement, also when picked with ``columns=``.
+``check_plausible=False``; so is a rotation read in rad that exceeds 1 rad (57 deg: a
+column in degrees under a plain ``theta`` title). A rotation column (``theta``, or one
+with a unit of angle) picked as the displacement (``columns={'u': 'theta'}``) is refused,
+and so is a displacement title with a unit of angle (``u_deg``).
 
 **Refused**, with a ``ValueError`` that names the file and the line: a missing or
 unrecognised header, a row with the wrong number of values, a value that is not a number
@@ -82,8 +86,12 @@ MAX_GAP_RATIO = 10.0
 SYNTHETIC_TRACES = ("synthetic_decay_clean", "synthetic_decay_noisy", "synthetic_decay_exact")
 """Names of the synthetic traces shipped in ``rockjax._data`` (files ``<name>.csv/.json``)."""
 
-CHANNELS = ("t", "u", "uplift")
-"""The channels of a trace: time [s], top displacement [m], uplift [m] (optional)."""
+CHANNELS = ("t", "u", "uplift", "theta")
+"""The channels of a trace: time [s], top displacement [m], uplift [m], rotation [rad]
+(any of the last three, at least one)."""
+MOTION = ("u", "theta", "uplift")
+"""The channels of the motion, in the order the fit takes them (`identification.fit_decay`:
+the first present is the one whose release is found)."""
 
 _UNITS = rockjax.UNITS  # the one unit table of rockjax (records, traces, command line)
 
@@ -101,14 +109,15 @@ LENGTH_UNITS = _spelled("length")
 """Units of length a trace file may use (every spelling), and their size in m; from
 :data:`rockjax.UNITS`."""
 
-_UNITS_OF = {"t": "time", "u": "length", "uplift": "length"}  # the kind of unit of a channel
-_SI = {"t": "s", "u": "m", "uplift": "m"}
-_KIND = {"t": "time", "u": "displacement", "uplift": "uplift"}
-_NAMES = {"t": ("t", "time"), "u": ("u", "disp", "displacement"), "uplift": ("uplift",)}
+_UNITS_OF = {"t": "time", "u": "length", "uplift": "length", "theta": "angle"}  # unit kinds
+_SI = {"t": "s", "u": "m", "uplift": "m", "theta": "rad"}
+_KIND = {"t": "time", "u": "displacement", "uplift": "uplift", "theta": "rotation"}
+_NAMES = {"t": ("t", "time"), "u": ("u", "disp", "displacement"), "uplift": ("uplift",),
+          "theta": ("theta", "rotation", "rot", "tilt")}
 _MISSING = ("", "nan", "na", "n/a", "null", "none")
 _EXPECTED_HEADER = (
     "'t,u' or 't,u,uplift' (s, m, m), or with units such as 'time_s,disp_mm' or "
-    "'t [s],u [mm]'"
+    "'t [s],u [mm]'; a rotation (rad) or an uplift alone, 't,theta_deg' or 't,uplift'"
 )
 _UNITS_FROM = ("header", "units argument", "assumed SI", "SI arrays")
 
@@ -173,17 +182,20 @@ def _frozen_map(name: str, value, default: dict):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class DecayTrace:
-    """A free-vibration decay trace: top displacement (and optionally uplift) against time.
+    """A free-vibration decay trace: top displacement, rotation and/or uplift against time.
 
     Parameters
     ----------
     t : array_like, shape (n,)
         Sample times [s]: finite, strictly increasing, at least 10 samples, and without
         gaps (no step larger than 10 times the median step). Need not start at 0.
-    u : array_like, shape (n,)
-        Top displacement of the structure [m], finite.
+    u : array_like, shape (n,), optional
+        Top displacement of the structure [m], finite; ``None`` if not measured.
     uplift : array_like, shape (n,), optional
         Uplift of the lifted corner [m], finite; ``None`` (default) if not measured.
+    theta : array_like, shape (n,), optional
+        Rotation of the body [rad], finite; ``None`` (default) if not measured. At least
+        one of `u`, `theta` and `uplift` is required.
     source : str, optional
         Where the trace came from (e.g. the file path), for messages.
     columns, units, units_from : mapping, optional
@@ -196,8 +208,9 @@ class DecayTrace:
 
     Attributes
     ----------
-    t, u, uplift : numpy.ndarray
-        Read-only float64 copies of the inputs (``uplift`` may be ``None``).
+    t, u, uplift, theta : numpy.ndarray
+        Read-only float64 copies of the inputs (``u``, ``uplift``, ``theta`` may be
+        ``None``).
     source : str
     columns, units, units_from : mappingproxy
     dropped_lines : tuple of int
@@ -205,7 +218,8 @@ class DecayTrace:
     Raises
     ------
     ValueError
-        Naming the field (``t``, ``u``, ``uplift`` or ``source``) that is invalid.
+        Naming the field (``t``, ``u``, ``uplift``, ``theta`` or ``source``) that is
+        invalid, or when none of ``u``, ``theta`` and ``uplift`` is given.
 
     Notes
     -----
@@ -214,13 +228,14 @@ class DecayTrace:
     """
 
     t: np.ndarray
-    u: np.ndarray
+    u: np.ndarray | None = None
     uplift: np.ndarray | None = None
     source: str = ""
     columns: object = None
     units: object = None
     units_from: object = None
     dropped_lines: tuple = ()
+    theta: np.ndarray | None = None
 
     def __post_init__(self):
         if not isinstance(self.source, str):
@@ -243,20 +258,21 @@ class DecayTrace:
                 f"DecayTrace.t: gap in time of {step:g} s at index {i} (more than "
                 f"{MAX_GAP_RATIO:g} x the median step {med:g} s); split the trace or resample"
             )
-        u = _as_vector("u", self.u)
-        if u.shape != t.shape:
-            raise ValueError(f"DecayTrace.u: has {u.size} samples but t has {t.size}")
+        if self.u is None and self.theta is None and self.uplift is None:
+            raise ValueError("DecayTrace: no channel of the motion: give at least one of u "
+                             "[m], theta [rad] and uplift [m]")
         object.__setattr__(self, "t", t)
-        object.__setattr__(self, "u", u)
-        if self.uplift is not None:
-            up = _as_vector("uplift", self.uplift)
-            if up.shape != t.shape:
-                raise ValueError(f"DecayTrace.uplift: has {up.size} samples but t has {t.size}")
-            object.__setattr__(self, "uplift", up)
+        for ch in MOTION:
+            if getattr(self, ch) is not None:
+                x = _as_vector(ch, getattr(self, ch))
+                if x.shape != t.shape:
+                    raise ValueError(f"DecayTrace.{ch}: has {x.size} samples but t has "
+                                     f"{t.size}")
+                object.__setattr__(self, ch, x)
         self._set_read_info()
 
     def _set_read_info(self):
-        chans = CHANNELS if self.uplift is not None else CHANNELS[:2]
+        chans = ("t",) + tuple(c for c in CHANNELS[1:] if getattr(self, c) is not None)
         si = {c: _SI[c] for c in chans}
         object.__setattr__(self, "columns", _frozen_map("columns", self.columns, {}))
         object.__setattr__(self, "units", _frozen_map("units", self.units, si))
@@ -280,14 +296,25 @@ class DecayTrace:
         return float(f"{float(np.median(np.diff(self.t))):.12g}")
 
     @property
-    def amplitude(self) -> float:
-        """``max |u|`` [m]."""
-        return float(np.max(np.abs(self.u)))
+    def amplitude(self) -> float | None:
+        """``max |u|`` [m]; None without a displacement channel."""
+        return None if self.u is None else float(np.max(np.abs(self.u)))
 
     @property
     def has_uplift(self) -> bool:
         """Whether an uplift channel is present."""
         return self.uplift is not None
+
+    @property
+    def has_theta(self) -> bool:
+        """Whether a rotation channel is present."""
+        return self.theta is not None
+
+    @property
+    def channels(self) -> tuple:
+        """The channels of the motion present, in the order of `MOTION` (u, theta,
+        uplift)."""
+        return tuple(c for c in MOTION if getattr(self, c) is not None)
 
     def report(self) -> list[str]:
         """What was read, as lines of text (what `rockjax fit` prints): the columns and
@@ -297,8 +324,11 @@ class DecayTrace:
     def info(self) -> dict:
         """What was read, JSON-ready (SI values; keys carry their units): ``file``,
         ``columns``, ``units_in_file``, ``units_from`` (per channel), ``dt_s``,
-        ``n_points``, ``duration_s``, ``t_start_s``, ``t_end_s``, ``max_abs_u_m``,
-        ``has_uplift``, ``dropped_nan_rows`` and ``dropped_lines``."""
+        ``n_points``, ``duration_s``, ``t_start_s``, ``t_end_s``, ``max_abs_u_m`` (None
+        without u), ``has_uplift``, ``dropped_nan_rows`` and ``dropped_lines``; with a
+        rotation channel also ``has_theta`` and ``max_abs_theta_rad``."""
+        extra = ({} if self.theta is None else
+                 {"has_theta": True, "max_abs_theta_rad": float(np.max(np.abs(self.theta)))})
         return {
             "file": self.source,
             "columns": dict(self.columns),
@@ -313,14 +343,18 @@ class DecayTrace:
             "has_uplift": self.has_uplift,
             "dropped_nan_rows": len(self.dropped_lines),
             "dropped_lines": list(self.dropped_lines),
+            **extra,
         }
 
     def __repr__(self) -> str:
         up = "with uplift" if self.has_uplift else "no uplift"
         src = f", source={self.source!r}" if self.source else ""
+        peak = ("no u" if self.u is None else f"peak |u|={self.amplitude:.4g} m")
+        if self.theta is not None:
+            peak += f", peak |theta|={float(np.max(np.abs(self.theta))):.4g} rad"
         return (
             f"DecayTrace(n={self.n}, t=[{self.t[0]:g} .. {self.t[-1]:g}] s, "
-            f"peak |u|={self.amplitude:.4g} m, {up}{src})"
+            f"{peak}, {up}{src})"
         )
 
 
@@ -356,24 +390,29 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False,
         comment lines starting with ``#``, then the header, then one row per sample.
         Values may be separated by commas, ``;``, tabs or blanks, and use decimal commas
         (``0,01;1,5``). Whitespace around values and blank lines are ignored.
-        Header: time ``t``/``time``, displacement ``u``/``disp``/``displacement``
-        and optionally ``uplift``, in any order, each with an optional unit (``time_s``,
-        ``t_ms``, ``disp_mm``, ``u [mm]``, ``u (cm)``; time: s, ms, us, min; length: m,
-        cm, mm, um, in); without a unit, SI (s, m).
+        Header: time ``t``/``time`` and at least one of displacement
+        ``u``/``disp``/``displacement``, rotation ``theta``/``rotation``/``rot``/``tilt``
+        and ``uplift``, in any order, each with an optional unit (``time_s``, ``t_ms``,
+        ``disp_mm``, ``u [mm]``, ``u (cm)``, ``theta_deg``; time: s, ms, us, min; length:
+        m, cm, mm, um, in; angle: rad, mrad, deg); without a unit, SI (s, m, rad).
     columns : mapping, optional
         Pick the columns by their header names instead, e.g. ``{"t": "time_s", "u":
-        "disp_mm"}`` (``"uplift"`` optional; case-insensitive). Other columns are ignored.
+        "disp_mm"}`` or ``{"t": "t", "theta": "Winkel_deg"}`` (``"t"`` and at least one
+        of ``"u"``, ``"theta"``, ``"uplift"``; case-insensitive). Other columns are
+        ignored.
         The unit is still taken from a suffix of the name when it has one.
     units : mapping, optional
-        Units of channels whose header names state none, e.g. ``{"u": "mm"}``. A unit
+        Units of channels whose header names state none, e.g. ``{"u": "mm"}``,
+        ``{"theta": "deg"}``. A unit
         that contradicts the header is refused.
     drop_nan : bool
         Drop rows with a missing value (empty, ``nan``, ``NA``) in a used column, with a
         :class:`DroppedRowsWarning` saying how many; default False: refuse them.
     check_plausible : bool
         Refuse, with a hint on the units, a median time step of 0.1 s or more (a time
-        column in ms read as s) and a displacement stated in mm, cm or um that never
-        reaches 1 mm (a column in metres under a ``disp_mm`` title); default True. False
+        column in ms read as s), a displacement stated in mm, cm or um that never
+        reaches 1 mm (a column in metres under a ``disp_mm`` title) and a rotation read in
+        rad beyond 1 rad (degrees under a plain ``theta`` title); default True. False
         reads such a trace as it is.
 
     Returns
@@ -381,7 +420,8 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False,
     DecayTrace
         In SI units, with ``source`` set to ``str(path)``, and what was read in
         ``columns``, ``units``, ``units_from`` and ``dropped_lines`` (see
-        :meth:`DecayTrace.info`); ``uplift`` is ``None`` without an uplift column.
+        :meth:`DecayTrace.info`); ``u``, ``theta``, ``uplift`` are ``None`` without
+        their column.
 
     Raises
     ------
@@ -418,7 +458,7 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False,
           for k, ch in enumerate(layout.channels)}
     t = si["t"]
     if check_plausible:
-        _check_plausible(name, layout, t, si["u"])
+        _check_plausible(name, layout, t, si)
     gap = _first_gap(t)
     if gap is not None:
         k, step, med = gap
@@ -431,20 +471,22 @@ def read_trace(path, *, columns=None, units=None, drop_nan: bool = False,
     if dropped:
         warnings.warn(f"{name}: dropped {len(dropped)} row(s) with missing (NaN) values "
                       f"(line(s) {_some(dropped)})", DroppedRowsWarning, stacklevel=2)
-    return DecayTrace(t=t, u=si["u"], uplift=si.get("uplift"), source=name,
-                      columns=layout.names, units=layout.units, units_from=layout.units_from,
-                      dropped_lines=dropped)
+    return DecayTrace(t=t, u=si.get("u"), uplift=si.get("uplift"), theta=si.get("theta"),
+                      source=name, columns=layout.names, units=layout.units,
+                      units_from=layout.units_from, dropped_lines=dropped)
 
 
 #: a median time step of this many seconds or more is implausible for a decay trace
 MAX_PLAUSIBLE_DT = 0.1
 #: a displacement column in mm, cm or um whose peak stays below this [m] is implausible
 MIN_PLAUSIBLE_PEAK = 1e-3
+#: a rotation column in rad whose peak exceeds this [rad] (57 deg) is implausible
+MAX_PLAUSIBLE_ROTATION = 1.0
 
 
-def _check_plausible(name: str, layout, t: np.ndarray, u: np.ndarray) -> None:
-    """TraceError, with a hint on the units, for a time step of seconds or a displacement
-    column in mm (cm, um) that never reaches 1 mm."""
+def _check_plausible(name: str, layout, t: np.ndarray, si: dict) -> None:
+    """TraceError, with a hint on the units, for a time step of seconds, a displacement
+    column in mm (cm, um) that never reaches 1 mm, or a rotation in rad beyond 1 rad."""
     off = "; pass {} to read it as it is"
     dt = float(np.median(np.diff(t)))
     if dt >= MAX_PLAUSIBLE_DT:
@@ -457,6 +499,21 @@ def _check_plausible(name: str, layout, t: np.ndarray, u: np.ndarray) -> None:
                          advice=" or pass --units t=ms" + off,
                          python=" or pass units={'t': 'ms'}" + off.format(
                              "check_plausible=False"))
+    if "theta" in si and layout.units["theta"] == "rad":
+        peak = float(np.max(np.abs(si["theta"])))
+        if peak > MAX_PLAUSIBLE_ROTATION:
+            col = layout.names["theta"]
+            msg = (f"column {col!r}: a rotation of {peak:.4g} rad (read in rad, "
+                   f"{layout.units_from['theta']}) is implausible for a rocking decay (a "
+                   f"rocking body overturns long before {MAX_PLAUSIBLE_ROTATION:g} rad); if "
+                   f"the column holds degrees ({peak:.4g} deg), name it theta_deg")
+            raise TraceError(f"{name}: {msg}", param="check_plausible", value=False,
+                             advice=" or pass --units theta=deg" + off,
+                             python=" or pass units={'theta': 'deg'}" + off.format(
+                                 "check_plausible=False"))
+    if "u" not in si:
+        return
+    u = si["u"]
     unit = layout.units["u"]
     peak = float(np.max(np.abs(u)))
     if unit in ("mm", "cm", "um") and peak < MIN_PLAUSIBLE_PEAK:
@@ -504,11 +561,14 @@ def _split_unit(cell: str) -> tuple[str, str | None]:
 _ROTATION_NAMES = ("theta", "rotation", "rot", "tilt")
 
 
-def _rotation_message(cell: str) -> str:
-    """Why a rotation column cannot be read as a displacement, and what to do."""
-    return (f"column {cell!r} is a rotation, not a displacement: read_trace reads the top "
-            "displacement u (and the uplift); convert the rotation first, u = H_e sin(theta) "
-            "(rockjax.u_from_theta), and name that column u")
+def _rotation_message(cell: str, ch: str = "u") -> str:
+    """Why a rotation column cannot be read as a displacement (channel `ch`), and what to
+    do."""
+    what = "a displacement" if ch == "u" else "an uplift"
+    return (f"column {cell!r} is a rotation, not {what}: read it as the rotation channel "
+            f"theta (title it theta, theta_deg or theta_rad, or pick it with "
+            f"columns={{'theta': {cell!r}}}); the fit then compares it with the model's "
+            "rotation")
 
 
 def _read_header(name: str, lines: list[str], columns, units) -> tuple[int, _Layout]:
@@ -545,8 +605,6 @@ def _auto_columns(where, raw: str, cells: tuple) -> dict:
     for i, cell in enumerate(cells):
         base, _ = _split_unit(cell)
         ch = next((c for c, names in _NAMES.items() if base in names), None)
-        if ch is None and base in _ROTATION_NAMES:
-            raise _line_error(*where, _rotation_message(cell))
         if ch is None:
             msg = (f"expected header {_EXPECTED_HEADER}, got {raw!r}: column {cell!r} is "
                    "not a time, displacement or uplift column")
@@ -555,10 +613,13 @@ def _auto_columns(where, raw: str, cells: tuple) -> dict:
             msg = f"two {_KIND[ch]} columns in the header ({cells[index[ch]]!r} and {cell!r})"
             raise _line_error(*where, msg, **hint)
         index[ch] = i
-    for ch in ("t", "u"):
-        if ch not in index:
-            msg = f"expected header {_EXPECTED_HEADER}, got {raw!r}: no {_KIND[ch]} column"
-            raise _line_error(*where, msg, **hint)
+    if "t" not in index:
+        msg = f"expected header {_EXPECTED_HEADER}, got {raw!r}: no time column"
+        raise _line_error(*where, msg, **hint)
+    if not set(MOTION) & set(index):
+        msg = (f"expected header {_EXPECTED_HEADER}, got {raw!r}: no displacement, "
+               "rotation or uplift column")
+        raise _line_error(*where, msg, **hint)
     return index
 
 
@@ -568,9 +629,9 @@ def _named_columns(where, cells: tuple, columns) -> dict:
         raise ValueError(f"columns must map channels to column names, such as {{'t': "
                          f"'time_s', 'u': 'disp_mm'}}, got {columns!r}")
     bad = sorted(set(columns) - set(CHANNELS))
-    if bad or not {"t", "u"} <= set(columns):
-        raise ValueError(f"columns must name the columns of 't' and 'u' (and optionally "
-                         f"'uplift'), got {sorted(columns)}")
+    if bad or "t" not in columns or not set(MOTION) & set(columns):
+        raise ValueError(f"columns must name the columns of 't' and 'u' (or of 't' and "
+                         f"'theta' or 'uplift'), got {sorted(columns)}")
     lower = [c.lower() for c in cells]
     index = {}
     for ch, col in columns.items():
@@ -603,9 +664,9 @@ def _channel_units(where, names: dict, units) -> tuple[dict, dict]:
     for ch, cell in names.items():
         _, in_header = _split_unit(cell)
         kind = _UNITS_OF[ch]
-        if ch != "t" and (_UNITS.kind_of(in_header or "") == "angle"
-                          or _split_unit(cell)[0] in _ROTATION_NAMES):
-            raise _line_error(*where, _rotation_message(cell))
+        if ch in ("u", "uplift") and (_UNITS.kind_of(in_header or "") == "angle"
+                                      or _split_unit(cell)[0] in _ROTATION_NAMES):
+            raise _line_error(*where, _rotation_message(cell, ch))
         if in_header is not None:
             try:
                 in_header = _UNITS.normalize(in_header, kind)
@@ -709,7 +770,8 @@ def trace_lines(info) -> list[str]:
     out = [f"{info['file']}: {chans}",
            f"dt {info['dt_s']:.6g} s, {info['n_points']} points, {info['duration_s']:.6g} s "
            f"(t = {info['t_start_s']:.6g} .. {info['t_end_s']:.6g} s), "
-           f"max |u| {info['max_abs_u_m']:.4g} m"]
+           + (f"max |u| {info['max_abs_u_m']:.4g} m" if info["max_abs_u_m"] is not None
+              else "no u")]
     if info["dropped_nan_rows"]:
         out.append(f"{info['dropped_nan_rows']} row(s) with missing values dropped (--drop-nan)")
     return out

@@ -1,10 +1,12 @@
 r"""Natural parameters <-> the optimiser's unconstrained coordinates z.
 
 $$z = \big(\log(k_f - k_{f,min}),\ \operatorname{logit} r,\ u_0/u_{s},\
-(t_0 - t_{ref})/10\,\mathrm{ms},\ \log c_f,\ o/u_s,\ o_{up}/u_s,\ d/(u_s/\mathrm{s})\big),$$
+(t_0 - t_{ref})/10\,\mathrm{ms},\ \log c_f,\ o/u_s,\ o_{up}/u_s,\ d/(u_s/\mathrm{s}),
+\ o_\theta/\theta_s\big),$$
 
-($o$, $o_{up}$: the sensor zeros of the displacement and uplift channels, $d$ the drift
-of the displacement channel [m/s]: the nuisance parameters, linear in the residuals)
+($o$, $o_{up}$, $o_\theta$: the sensor zeros of the displacement, uplift and rotation
+channels, $d$ the drift of the displacement channel [m/s]: the nuisance parameters, linear
+in the residuals; $\theta_s$ the amplitude of the rotation channel [rad])
 where $k_{f,min} = W H_c / (2B^2)$ is the stability limit (Eq. 15), $u_s$ the trace
 amplitude and $t_{ref}$ the starting value of $t_0$. For the models whose k_f is bounded
 (`identification._models.k_f_cap`), $\log(k_f - k_{f,min})$ is bounded smoothly below
@@ -25,9 +27,9 @@ import numpy as np
 from . import _models
 
 T_SCALE = 0.01  # s, unit of t0 in the unconstrained coordinates
-LINEAR = ("offset", "offset_uplift", "drift")
+LINEAR = ("offset", "offset_uplift", "drift", "offset_theta")
 """The nuisance parameters (sensor zeros, drift): linear in the residuals, z = value / u_s
-(drift per second)."""
+(drift per second; offset_theta: z = value / theta_s)."""
 
 
 def k_f_of_z(z, span):
@@ -36,7 +38,8 @@ def k_f_of_z(z, span):
     return z if span is None else span - jax.nn.softplus(span - z)
 
 
-def decode(z, params: tuple, values0: dict, k_min, scale, t_ref, k_span) -> dict:
+def decode(z, params: tuple, values0: dict, k_min, scale, t_ref, k_span,
+           theta_scale=1.0) -> dict:
     """Traced: z (the fitted parameters, order `params`) -> natural values of all the
     parameters (`values0` for the others); the inverse of `Transform.encode`."""
     out = dict(values0)
@@ -51,7 +54,7 @@ def decode(z, params: tuple, values0: dict, k_min, scale, t_ref, k_span) -> dict
         elif name == "c_f":
             out["c_f"] = jnp.exp(zi)
         elif name in LINEAR:
-            out[name] = zi * scale
+            out[name] = zi * (theta_scale if name == "offset_theta" else scale)
         else:
             out["t0"] = t_ref + zi * T_SCALE
     return out
@@ -72,6 +75,11 @@ class Transform:
     t_ref: float
     offsets: tuple = _models.SDOF_START_OFFSETS  # (log k_f, dissipation) shift of each start
     k_cap: float | None = None  # smooth upper bound of k_f (see k_f_of_z)
+    theta_scale: float = 1.0  # amplitude of the rotation channel [rad]: offset_theta's unit
+
+    def _unit(self, p: str) -> float:
+        """The unit of z of a nuisance parameter."""
+        return self.theta_scale if p == "offset_theta" else self.scale
 
     def encode(self, v: dict) -> dict:
         """Natural values of all the parameters -> their z coordinates."""
@@ -85,7 +93,7 @@ class Transform:
             "u0": v["u0"] / self.scale,
             "t0": (v["t0"] - self.t_ref) / T_SCALE,
             "c_f": math.log(v["c_f"]) if v["c_f"] > 0 else -math.inf,  # fitted: > 0
-            **{p: v[p] / self.scale for p in LINEAR},
+            **{p: v[p] / self._unit(p) for p in LINEAR},
         }
 
     def decode(self, z) -> dict:
@@ -107,7 +115,7 @@ class Transform:
             elif p == "c_f":
                 out["c_f"] = math.exp(zi)
             elif p in LINEAR:
-                out[p] = zi * self.scale
+                out[p] = zi * self._unit(p)
             else:
                 out["t0"] = self.t_ref + zi * T_SCALE
         return out
@@ -127,7 +135,7 @@ class Transform:
                 s_ = 1.0 / (1.0 + math.exp(-zi))
                 out.append(s_ * (1 - s_))
             elif p == "u0" or p in LINEAR:
-                out.append(self.scale)
+                out.append(self.scale if p == "u0" else self._unit(p))
             else:
                 out.append(T_SCALE)
         return out
@@ -154,4 +162,4 @@ class Transform:
     def of(cls, pb) -> Transform:
         """The transform of a `Problem`."""
         return cls(pb.params, pb.values0, pb.k_min, pb.scale, pb.t_ref,
-                   _models.start_offsets(pb.fit_model), pb.k_cap)
+                   _models.start_offsets(pb.fit_model), pb.k_cap, pb.theta_scale)

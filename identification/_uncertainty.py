@@ -26,7 +26,7 @@ class Uncertainty:
     derivatives: list  # d(natural value)/dz of each fitted parameter
     se: np.ndarray  # standard errors (natural units)
     corr: np.ndarray  # correlation matrix
-    sigma: float  # estimated noise std of the displacement [m]
+    sigma: float  # estimated noise std of the primary channel (u [m], theta [rad], uplift [m])
 
 
 def uncertainty(problem: Problem, transform: Transform, best: Best,
@@ -41,7 +41,7 @@ def uncertainty(problem: Problem, transform: Transform, best: Best,
     J, r = best.J, best.r
     n_res, n_par = J.shape
     n_u = problem.t.size
-    channels = [slice(0, n_u)] + ([slice(n_u, n_res)] if n_res > n_u else [])
+    channels = [slice(k * n_u, (k + 1) * n_u) for k in range(max(n_res // n_u, 1))]
     var = np.empty(n_res)
     sig2 = []
     for ch in channels:
@@ -62,23 +62,33 @@ def uncertainty(problem: Problem, transform: Transform, best: Best,
     except np.linalg.LinAlgError:
         se = np.full(n_par, np.inf)
         corr = np.full((n_par, n_par), np.nan)
+    scale, w = problem.unit_of(problem.channels[0])
     return Uncertainty(values=vals_nat, derivatives=dtheta_dz, se=se, corr=corr,
-                        sigma=math.sqrt(sigma2) * problem.scale)
+                        sigma=math.sqrt(sigma2) * problem.scale if problem.channels[0] == "u"
+                        else math.sqrt(sigma2) * scale / max(w, 1e-300))
 
 
 def identifiability(problem: Problem, best: Best, unc: Uncertainty):
     """(the `FitResult.identifiability` dict, the messages of the IdentifiabilityWarning's).
 
     The sensitivity of a parameter is the RMS change of the displacement trace [m] for a
-    1 % change of it (t0: for 1 ms), to compare with the noise level.
+    1 % change of it (t0: for 1 ms), to compare with the noise level; of the primary
+    channel without u (the rotation [rad], the uplift [m]).
     """
     params, vals_nat, se, sigma = problem.params, unc.values, unc.se, unc.sigma
     n = problem.t.size
-    Ju = best.J[:n] * problem.scale  # d u / d z [m]
-    if "offset_uplift" in params:  # it acts on the uplift channel only: d uplift / d z [m]
-        j = params.index("offset_uplift")
-        Ju = Ju.copy()
-        Ju[:, j] = best.J[n:, j] * problem.scale / max(problem.uplift_weight, 1e-300)
+    chans = problem.channels
+    if chans[0] == "u":
+        Ju = best.J[:n] * problem.scale  # d u / d z [m]
+    else:
+        s0, w0 = problem.unit_of(chans[0])
+        Ju = best.J[:n] * s0 / max(w0, 1e-300)  # d (primary channel) / d z
+    for p, ch in (("offset_uplift", "uplift"), ("offset_theta", "theta")):
+        if p in params and ch in chans and chans[0] != ch:  # acts on its channel only
+            j, k = params.index(p), chans.index(ch)
+            s_c, w_c = problem.unit_of(ch)
+            Ju = Ju.copy()
+            Ju[:, j] = best.J[k * n:(k + 1) * n, j] * s_c / max(w_c, 1e-300)
     sens = {}
     for j, p in enumerate(params):
         # t0: for 1 ms; the sensor's offsets: 1 % of the amplitude (drift: per second)
@@ -106,7 +116,8 @@ def identifiability(problem: Problem, best: Best, unc: Uncertainty):
                 f"brings {p} into play: an impact for r, say); leave it out of params"
             )
         elif p in NUISANCE:
-            if not se[j] < 0.1 * problem.scale:
+            if not se[j] < 0.1 * (problem.theta_scale if p == "offset_theta"
+                                  else problem.scale):
                 messages.append(
                     f"the trace does not pin the sensor's {p} down: standard error "
                     f"{se[j]:.3g} {UNITS[p]}, {100 * se[j] / problem.scale:.3g} % of the "
@@ -128,10 +139,17 @@ def identifiability(problem: Problem, best: Best, unc: Uncertainty):
 
 
 def lack_of_fit(problem: Problem, u_fit: np.ndarray, keep: np.ndarray) -> dict:
-    """The lack-of-fit check of the displacement residuals (kept samples, time order)."""
-    e = (u_fit - problem.u_meas)[keep]  # u_fit: as the sensor reads it
+    r"""The lack-of-fit check of the displacement residuals (kept samples, time order); of
+    the primary channel without u (`u_fit`: that channel, as the sensor reads it): the
+    rotation's residuals as displacements at the top, $H_e\,\Delta\theta$ [m] (the
+    statistics do not depend on the factor; the sizes in the message are then in m)."""
+    ch = problem.channels[0]
+    e = (u_fit - problem.measured(ch))[keep]  # u_fit: as the sensor reads it
+    if ch == "theta":
+        e = e * float(problem.structure.H_e)
     rms = float(np.sqrt(np.mean(e**2)))
     fm = problem.fit_model
-    return _lack.lack_of_fit(e, rms, problem.scale, fm.describe(),
-                             _models.models_above(fm, problem.params), t=problem.t[keep],
-                             fitted=tuple(p for p in problem.params if p in NUISANCE))
+    out = _lack.lack_of_fit(e, rms, problem.scale, fm.describe(),
+                            _models.models_above(fm, problem.params), t=problem.t[keep],
+                            fitted=tuple(p for p in problem.params if p in NUISANCE))
+    return out if ch == "u" else {**out, "channel": ch}

@@ -340,11 +340,12 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
     """Measured and fitted displacement (and uplift, when measured) of a decay trace and
     its fit (`identification.fit_decay`), with a residual panel. Returns a matplotlib
     Figure (no pyplot)."""
-    t, u = np.asarray(trace.t), np.asarray(trace.u)
-    channels = [("u", "displacement u [mm]", u, np.asarray(fit.response.u), "C0")]
-    if trace.uplift is not None:
-        channels.append(("uplift", "uplift [mm]", np.asarray(trace.uplift),
-                         np.asarray(fit.response.uplift), "C2"))
+    t = np.asarray(trace.t)
+    channels = [(c, label, np.asarray(getattr(trace, c)), np.asarray(getattr(fit.response, c)),
+                 color) for c, label, color in (("u", "displacement u [mm]", "C0"),
+                                                ("theta", "rotation θ [mrad]", "C1"),
+                                                ("uplift", "uplift [mm]", "C2"))
+                if getattr(trace, c, None) is not None]  # the channels the trace has
     panels = len(channels) + 1
     fig = new_figure(figsize=(9, 2.3 * panels + 0.8))
     axes = fig.subplots(panels, 1, sharex=True,
@@ -356,16 +357,18 @@ def plot_fit(trace, fit, *, title=None, measured_label="measured"):
         ax.set_ylabel(ylabel)
         ax_res.plot(t, 1e3 * (measured - fitted), color=color, lw=0.7, label=name)
     axes[0].legend(fontsize=8, loc="upper right")
-    if trace.uplift is not None:
+    if len(channels) > 1:
         ax_res.legend(fontsize=8, loc="upper right", ncol=2)
     ax_res.axhline(0.0, color="k", lw=0.5)
-    ax_res.set_ylabel("residual [mm]")
+    units = dict.fromkeys("mrad" if c[0] == "theta" else "mm" for c in channels)
+    unit = next(iter(units))  # of fit.rms: the first channel's
+    ax_res.set_ylabel(f"residual [{', '.join(units)}]")
     ax_res.set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
     conv = "converged" if fit.converged else "NOT converged"
     axes[0].set_title((title + "\n" if title else "") + f"{_fit_values(fit)}; rms residual "
-                      f"{1e3 * fit.rms:.3g} mm, {conv}", fontsize=10)
+                      f"{1e3 * fit.rms:.3g} {unit}, {conv}", fontsize=10)
     fig.tight_layout()
     return fit_titles(fig)
 

@@ -4,6 +4,7 @@ SYNTHETIC decay traces."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 
 import jax.numpy as jnp
@@ -164,7 +165,9 @@ BAD = {
                    r"expected header 't,u' or.*column 'up' is not a time, displacement or "
                    r"uplift column; name the columns with columns="),
     "two_time_columns": (["t,time,u", *_rows(10)], 1, "two time columns"),
-    "no_displacement": (["t,uplift", *_rows(10, ncol=2)], 1, "no displacement column"),
+    # an uplift (or a rotation) alone is a trace now (test_trace_channels); time alone is not
+    "no_displacement": (["t", *_rows(10, ncol=1)], 1,
+                        "no displacement, rotation or uplift column"),
     "unknown_unit": (["t,u [inch]", *_rows(10, ncol=2)], 1,
                      r"column 'u \[inch\]': 'inch' is not a unit of length \(expected one of m,"),
     "time_in_mm": (["t_mm,u", *_rows(10, ncol=2)], 1, "'mm' is not a unit of time"),
@@ -423,3 +426,53 @@ def test_release_not_fooled_by_a_spike_in_the_hold():
     u[50] += 0.02  # one 40-sigma spike during the hold
     rel = identification.detect_release(DecayTrace(tr.t, u))
     assert abs(rel.time - t_release) < 0.015, rel
+
+
+# ------------------------------------------------------- traces of any channel (issue 24)
+@pytest.mark.parametrize("title, units, factor", [
+    ("t,theta", None, 1.0), ("t,theta_deg", None, math.pi / 180), ("t,rot_rad", None, 1.0),
+    ("t,theta [mrad]", None, 1e-3), ("t,theta", {"theta": "deg"}, math.pi / 180)])
+def test_trace_channels_rotation_read(tmp_path, title, units, factor):
+    """A rotation column is read as the channel theta [rad] (no longer refused), converted
+    from the unit of its title or of `units`; u is None."""
+    rows = [f"{0.01 * i:.6g},{0.08 * math.cos(0.3 * i) / factor:.9g}" for i in range(20)]
+    tr = read_trace(_write(tmp_path, "rot.csv", [title, *rows]), units=units)
+    assert tr.u is None and tr.uplift is None and tr.channels == ("theta",)
+    assert tr.theta[0] == pytest.approx(0.08, rel=1e-8)
+    assert tr.has_theta and tr.info()["max_abs_theta_rad"] == pytest.approx(0.08, rel=1e-8)
+    assert tr.info()["max_abs_u_m"] is None and tr.amplitude is None
+
+
+def test_trace_channels_subsets(tmp_path):
+    """Any subset of u, theta and uplift (with t) is a trace; time alone, or a rotation
+    read as the displacement (or a displacement with a unit of angle), is not."""
+    rows = [f"{0.01 * i:.6g},{0.1 * 0.9**i:.6g},{0.01 * 0.9**i:.6g},{0.05 * 0.9**i:.6g}"
+            for i in range(12)]
+    tr = read_trace(_write(tmp_path, "all.csv", ["t,u,theta,uplift", *rows]))
+    assert tr.channels == ("u", "theta", "uplift")
+    up = read_trace(_write(tmp_path, "up.csv", ["t,uplift_mm", *[r.rsplit(",", 2)[0]
+                                                                 .split(",")[0] + ","
+                                                                 + r.split(",")[3]
+                                                                 for r in rows]]))
+    assert up.channels == ("uplift",) and up.uplift[0] == pytest.approx(0.05e-3)
+    picked = read_trace(tmp_path / "all.csv", columns={"t": "t", "theta": "theta"})
+    assert picked.channels == ("theta",)
+    with pytest.raises(ValueError, match="'theta' is a rotation, not a displacement: read "
+                       "it as the rotation channel theta"):
+        read_trace(tmp_path / "all.csv", columns={"t": "t", "u": "theta"})
+    with pytest.raises(ValueError, match="'u_deg' is a rotation"):
+        read_trace(_write(tmp_path, "udeg.csv", ["t,u_deg", *[",".join(r.split(",")[:2])
+                                                              for r in rows]]))
+    with pytest.raises(ValueError, match="no channel of the motion"):
+        DecayTrace(t=np.arange(12.0))
+    with pytest.raises(ValueError, match="DecayTrace.theta: has 3 samples"):
+        DecayTrace(t=np.arange(12.0), theta=np.zeros(3))
+
+
+def test_trace_channels_rotation_in_degrees_under_rad_title(tmp_path):
+    """A rotation beyond 1 rad read in rad is refused with a hint (degrees?)."""
+    rows = [f"{0.01 * i:.6g},{5 * math.cos(0.3 * i):.6g}" for i in range(20)]
+    with pytest.raises(identification.TraceError,
+                       match=r"name it theta_deg or pass units=\{'theta': 'deg'\}"):
+        read_trace(_write(tmp_path, "deg.csv", ["t,theta", *rows]))
+    assert read_trace(tmp_path / "deg.csv", check_plausible=False).theta[0] == 5.0

@@ -34,7 +34,7 @@ FLAGS = {**COMMON_FLAGS, "structure": "--structure", "columns": "--columns",
          "starts": "--starts", "params": "--params"}
 _PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
-_CHANNELS = ("t", "u", "uplift")
+_CHANNELS = ("t", "u", "uplift", "theta")
 
 
 def _channel_map(option):

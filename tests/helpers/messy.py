@@ -234,6 +234,16 @@ def _rec(pga=PGA, units=None, dt=DT, source="file header", rel=1e-6) -> Truth:
 
 
 _TRACE = {"dt": 0.005, "amplitude": 0.08}
+
+
+def _rotation_read(tr) -> str | None:
+    """A 't,theta_deg' file is read as a rotation channel of 0.08 rad peak, with no u."""
+    if tr.u is not None or tr.theta is None:
+        return f"read as channels {tr.channels}, not the rotation alone"
+    peak = float(np.max(np.abs(tr.theta)))
+    if abs(peak - 0.08) > 1e-6 or tr.units["theta"] != "deg":
+        return f"peak rotation {peak:.6g} rad in {tr.units['theta']}, not 0.08 rad from deg"
+    return None
 _NOT_STATED = "ParameterError[units]: units not stated"
 
 CASES: list[Case] = [
@@ -334,10 +344,13 @@ CASES: list[Case] = [
          trace_csv("t u_mm", u_factor=1e-3, sep=" ", comma=True), Truth(values=_TRACE),
          "European CSV", "TraceError: unrecognised header"),
     Case("tr_theta_deg.csv", "trace", trace_csv("t,theta_deg", u_factor=math.pi / 180),
-         Truth(error="TraceError", match=r"'theta_deg' is a rotation, not a displacement"),
-         "rotation as displacement",
+         Truth(predicate=_rotation_read), "rotation as displacement",
          "TraceError: not a time, displacement or uplift column; name the columns with "
          "columns= (which reads the rotation as a displacement)"),
+    Case("tr_theta_plain_deg.csv", "trace", trace_csv("t,theta", u_factor=math.pi / 180),
+         Truth(error="TraceError", match=r"a rotation of 4\.58\d* rad .* name it theta_deg"),
+         "rotation in degrees under a plain title",
+         "TraceError: 'theta' is a rotation, not a displacement"),
     Case("tr_columns_u_theta.csv", "trace", trace_csv("t,theta_rad"),
          Truth(error="TraceError", match=r"'theta_rad' is a rotation"),
          "rotation as displacement", "rotation fitted as a displacement",
@@ -474,7 +487,8 @@ def _describe(obj) -> str:
         return (f"PGA {obj.pga:.6g} m/s2, dt {obj.dt:g} s, {obj.npts} pts, units "
                 f"{obj.units_in_file} ({obj.units_source})")
     if hasattr(obj, "amplitude"):
-        return f"dt {obj.dt:g} s, peak |u| {obj.amplitude:.6g} m, units {dict(obj.units)}"
+        peak = ("no u" if obj.amplitude is None else f"peak |u| {obj.amplitude:.6g} m")
+        return f"dt {obj.dt:g} s, {peak}, channels {obj.channels}, units {dict(obj.units)}"
     return f"B {float(obj.B):.6g} m, H_e {float(obj.H_e):.6g} m, k_f {float(obj.k_f):.6g} N/m"
 
 

@@ -100,6 +100,23 @@ class Schedule:
         return schedule
 
 
+def _weights(weights, keywords):
+    """(uplift, theta) weights: `weights` by channel, or the keyword form's."""
+    given = {k[: -len("_weight")]: keywords.pop(k) for k in ("uplift_weight", "theta_weight")
+             if k in keywords}
+    if weights is not None and given:
+        name = next(iter(given))
+        raise rockjax.ParameterError(f"{name}_weight= and weights= both given; put "
+                                     f"{name!r} in weights", param=f"{name}_weight")
+    weights = dict(given if weights is None else weights)
+    unknown = sorted(set(weights) - {"uplift", "theta"})
+    if unknown:
+        raise rockjax.ParameterError(f"weights: unknown channel(s) {unknown}; the weighted "
+                                     "channels are 'uplift' and 'theta' (u's weight is 1)",
+                                     param="weights")
+    return float(weights.get("uplift", 1.0)), float(weights.get("theta", 1.0))
+
+
 def _tolerances(integrator, keywords):
     """(rtol, atol) of the fit's simulations: the integrator's, or the keyword form's."""
     rtol, atol = keywords.pop("rtol", None), keywords.pop("atol", None)
@@ -126,8 +143,7 @@ def fit_decay(
     initial: dict | None = None,
     offset=None,
     drift: bool = False,
-    uplift_weight: float = 1.0,
-    theta_weight: float = 1.0,
+    weights: dict | None = None,
     optimizer=None,
     schedule: Schedule | None = None,
     integrator=None,
@@ -168,9 +184,9 @@ def fit_decay(
       not in `params`: the value it is held at). c_f starts, unless given here or by the
       model instance, at 5 % of critical damping of the vertical mode,
       $0.05\sqrt{2k_f(m_e+m_b)}$; held, at the model's damping (0 for "two_spring_2dof").
-    - `uplift_weight`: weight of the uplift residuals (when the trace has them).
-    - `theta_weight`: weight of the rotation residuals (when the trace has them), which
-      are in units of the rotation's amplitude (u's and the uplift's: of u's amplitude).
+    - `weights`: the weight of each channel's residuals, by channel: `{"uplift": 1.0,
+      "theta": 1.0}` (the defaults; u's is 1). The rotation's residuals are in units of
+      the rotation's amplitude, u's and the uplift's of u's amplitude.
       A trace may hold any of u, theta and uplift: each is fitted through the model's
       own observation of it (`rockjax.Response.u`, `.theta`, `.uplift`); without u the
       release is found in the rotation (else the uplift) and u0 starts from its level
@@ -199,7 +215,8 @@ def fit_decay(
       3 s and stderr is a terminal).
     - `**keywords`: the keyword form of earlier versions, still accepted: `impact=`,
       `contact=` (the model's), `starts=`, `horizons=`, `max_iter=`, `tol=` (the
-      `Schedule`'s), `rtol=`, `atol=` (the integrator's).
+      `Schedule`'s), `rtol=`, `atol=` (the integrator's), `uplift_weight=`,
+      `theta_weight=` (the `weights`').
 
     **Returns:** a `FitResult`. Warns `ConvergenceWarning` when the fit ends unconverged
     (`FitResult.converged` False), whatever the optimiser; warns `IdentifiabilityWarning`
@@ -241,6 +258,7 @@ def fit_decay(
     schedule = Schedule.from_keywords(schedule, keywords)
     rtol, atol = _tolerances(integrator, keywords)
     impact, contact = keywords.pop("impact", "paper"), keywords.pop("contact", None)
+    uplift_weight, theta_weight = _weights(weights, keywords)
     if keywords:
         raise TypeError(f"fit_decay() got unexpected keyword arguments {sorted(keywords)}")
     settings = Settings(model=model, impact=impact, contact=contact, initial=initial,

@@ -201,7 +201,7 @@ def _joint_problem(traces, structure, params, settings: Settings) -> _JointProbl
             has = "has" if pb.fits_uplift else "has no"
             raise ValueError(
                 f"trace[{i}] {has} uplift channel, unlike trace[0]: a joint fit needs the "
-                "same channels in every trace (drop the uplift, or set uplift_weight=0)")
+                "same channels in every trace (drop the uplift, or set weights={'uplift': 0})")
     local = problems[0].params
     shared = [p for p in local if p in SHARED]
     own = [p for p in local if p in OWN]

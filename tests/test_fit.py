@@ -293,6 +293,12 @@ def test_schedule_and_integrator_objects_equal_the_keyword_form(noisy_fit):
     assert e.value.param == "rtol"
     with pytest.raises(TypeError, match="unexpected keyword arguments \\['startz'\\]"):
         fit_decay(trace, s, startz=2)
+    with pytest.raises(rockjax.ParameterError, match="unknown channel") as e:
+        fit_decay(trace, s, weights={"uplfit": 2.0})
+    assert e.value.param == "weights"
+    with pytest.raises(rockjax.ParameterError, match="uplift_weight= and weights=") as e:
+        fit_decay(trace, s, uplift_weight=2.0, weights={"uplift": 2.0})
+    assert e.value.param == "uplift_weight"
 
 
 def test_synthetic_faults_object_equals_the_keywords():

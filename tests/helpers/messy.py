@@ -191,6 +191,9 @@ class Truth:
             p = f"[{self.param}]" if self.param else ""
             return f"{self.error}{p}: /{self.match}/"
         vals = ", ".join(f"{k}={_short(v)}" for k, v in (self.values or {}).items())
+        if self.predicate is not None:
+            doc = (self.predicate.__doc__ or "").strip().splitlines()
+            vals = ", ".join(x for x in (vals, doc[0] if doc else "checked") if x)
         return vals + (f" + {self.warns}" if self.warns else "")
 
 
@@ -416,6 +419,7 @@ def _recovered(offset=None, drift=None, rel=0.01):
     """A predicate: k_f and r within `rel`, and the sensor's offset [m] / drift [m/s]
     within 0.5 mm / 0.2 mm/s of theirs."""
     def check(fit):
+        """k_f, r within 1 %, offset/drift recovered"""
         bad = [f"{p} {fit.values[p]:.6g} (truth {FIT_TRUTH[p]:.6g})" for p in ("k_f", "r")
                if abs(fit.values[p] / FIT_TRUTH[p] - 1) > rel]
         for name, want, tol in (("offset", offset, 5e-4), ("drift", drift, 2e-4)):
@@ -427,6 +431,7 @@ def _recovered(offset=None, drift=None, rel=0.01):
 
 def _diagnosed(cause, text):
     def check(fit):
+        """lack of fit diagnosed as its cause"""
         d = fit.diagnosis or {}
         ok = d.get("cause") == cause and re.search(text, d.get("message", ""))
         return None if ok else f"diagnosis {d}"
@@ -481,6 +486,13 @@ def read(case: Case, path: pathlib.Path):
 
 
 def _describe(obj) -> str:
+    if hasattr(obj, "values") and "k_f" in getattr(obj, "values", {}):  # a fit
+        v = obj.values
+        sensor = "".join(f", {k} {1e3 * v[k]:.3g} mm" for k in ("offset",) if k in v)
+        sensor += "".join(f", {k} {1e3 * v[k]:.3g} mm/s" for k in ("drift",) if k in v)
+        diag = (obj.diagnosis or {}).get("cause")
+        return (f"fit: k_f {v['k_f']:.6g} N/m, r {v['r']:.5g}{sensor}"
+                + (f"; lack of fit: {diag}" if diag else ""))
     if not any(hasattr(obj, a) for a in ("pga", "amplitude", "B")):
         return repr(obj)[:200]
     if hasattr(obj, "pga"):

@@ -122,7 +122,8 @@ FILES = {
     "noheader.csv": _csv(ROWS, header=None),
     "wronghdr.csv": _csv(ROWS, header="time,disp,temp"),
     "twotime.csv": _csv([(t, t, u) for t, u in ROWS], header="t,time,u"),
-    "noU.csv": _csv(ROWS, header="t,uplift"),
+    "noU.csv": "t\n" + "".join(f"{t}\n" for t, _ in ROWS),  # time alone (an uplift alone
+    # or a rotation alone is a trace: any channel of the motion is fitted)
     "inch.csv": _csv(ROWS, header="t,u [inch]"),
     "tmm.csv": _csv(ROWS, header="t_mm,u"),
     "dispmm.csv": _csv(ROWS, header="t,disp_mm"),
@@ -499,7 +500,7 @@ API = [
     case("T7", "nan", _trace("nan.csv"),
          "line 7: column 'u': missing value 'nan' (NaN); 1 row(s) of the file have missing"),
     case("T13", "two-times", _trace("twotime.csv"), "two time columns in the header"),
-    case("T14", "no-u", _trace("noU.csv"), "no displacement column"),
+    case("T14", "no-u", _trace("noU.csv"), "no displacement, rotation or uplift column"),
     case("T15", "inch", _trace("inch.csv"), "'inch' is not a unit of length"),
     case("T15", "t-mm", _trace("tmm.csv"), "'mm' is not a unit of time"),
     case("T16", "contradiction", _trace("dispmm.csv", units={"u": "m"}),

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import math
+import types
 import warnings
 
+import numpy as np
 import pytest
 
 import identification
 import rockjax
+from identification import _auto
 from identification._auto import rank, ranking_table
+from identification._problem import Settings
 
 
 def _row(model, aic, lack=False, converged=True):
@@ -48,6 +52,46 @@ def test_rank_does_not_prefer_a_converged_misfit_to_a_closer_unconverged_fit():
     # a fit whose residuals are noise still comes first, whatever the others' AIC
     ranked = rank(rows + [_row("two_spring_2dof (contact impact)", -4000.0)])
     assert ranked[0]["model"] == "two_spring_2dof (contact impact)"
+
+
+def _stub_fit(bad_unless_finer=True):
+    """A stand-in for `_fit.fit_single`: noise residuals (0.5 mm) only over the finer
+    horizons of the second try, a wrong minimum (2 mm, the check firing) otherwise."""
+    calls = []
+
+    def fit_single(trace, structure, params, st, optimizer):
+        calls.append((st.model, st.contact, st.horizons))
+        good = st.horizons == _auto.RETRY_HORIZONS or not bad_unless_finer
+        return types.SimpleNamespace(
+            response=types.SimpleNamespace(u=np.zeros(400)), outliers=np.array([], int),
+            rms=5e-4 if good else 2e-3, names=("k_f", "r", "u0", "t0", "offset"),
+            lack_of_fit={"fires": not good}, converged=True,
+            values={"k_f": 7e5 if good else 1.3e6}, fixed={})
+
+    return fit_single, calls
+
+
+def test_a_2dof_rung_in_a_wrong_minimum_is_fitted_again_over_finer_horizons():
+    settings = Settings(model="auto")
+    fit_single, calls = _stub_fit()
+    row, fit, _ = _auto._fit_rung(None, None, settings, None, fit_single,
+                                  "two_spring_2dof", "continuous")
+    assert [c[2] for c in calls] == [None, _auto.RETRY_HORIZONS]
+    assert row["horizons"] == "finer (second try)" and row["fits"] == 2
+    assert not row["lack_of_fit"] and fit.values["k_f"] == 7e5
+    assert "(2 fits)" in ranking_table(rank([row]))
+    # a 2-DOF fit whose residuals are noise: one fit
+    fit_single, calls = _stub_fit(bad_unless_finer=False)
+    row, _, _ = _auto._fit_rung(None, None, settings, None, fit_single, "two_spring_2dof",
+                                "impact")
+    assert len(calls) == 1 and row["fits"] == 1 and row["horizons"] == "default"
+    # the SDOF rungs, and any rung when the caller set the horizons: no second try
+    for model, contact, st in (("simplified", None, settings),
+                               ("two_spring_2dof", "impact",
+                                Settings(model="auto", horizons=(0.5, 1.0)))):
+        fit_single, calls = _stub_fit()
+        row, _, _ = _auto._fit_rung(None, None, st, None, fit_single, model, contact)
+        assert len(calls) == 1 and row["lack_of_fit"] and row["fits"] == 1
 
 
 def test_auto_refuses_params_and_lists():

@@ -78,7 +78,8 @@ def add_parser(subparsers):
         "reports standard errors, the k_f-r correlation, identifiability warnings, a "
         "lack-of-fit check (residuals that are not noise: the model cannot represent the "
         "trace, the standard errors do not hold, and the next model up the ladder), and "
-        "what was read. The 2-DOF body's fits take minutes.",
+        "what was read. --model auto fits the rungs of the ladder and keeps the one the "
+        "trace requires (the ranking is printed). The 2-DOF body's fits take minutes.",
     )
     f.add_argument("trace", metavar="TRACE.csv", nargs="+",
                    help="decay trace (time, displacement, optional uplift); several traces "

@@ -96,6 +96,14 @@ class FitResult:
         """What the residuals look like when they are not noise (None when they are)."""
         return self.lack_of_fit.get("diagnosis")
 
+    def ranking_text(self) -> str:
+        """The ranking of `model="auto"` (`ranking`: every rung fitted, best first) as a
+        markdown table: rank, model, parameters k, AIC, dAIC, rms, lack of fit,
+        converged, k_f, time; "" for a fit of one model."""
+        from ._auto import ranking_table
+
+        return ranking_table(self.ranking) if self.ranking else ""
+
     def release_text(self) -> str:
         """Where the release was found in the trace (after a hold, or at the first sample)
         and the t0 the fit used, in one line."""

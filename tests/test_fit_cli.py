@@ -169,6 +169,15 @@ SOFT = "[structure]\nm_e=1.0\nm_b=1.0\nH_e=1.0\nH_b=0.1\nB=0.3\nI_eg=0.0\nI_bg=0
         (["fit", "tr.csv", "--starts", "0"], {"tr.csv": VALID}, "--starts"),
         (["fit", "tr.csv", "--plot", "x.txt"], {"tr.csv": VALID}, "--plot"),
         (["fit"], {}, "TRACE.csv"),
+        (["fit", "tr.csv", "--offset", "maybe"], {"tr.csv": VALID}, "--offset"),
+        (["fit", "tr.csv", "--model", "auto", "--params", "k_f", "r"], {"tr.csv": VALID},
+         "--model auto does not take --params"),
+        (["fit", "tr.csv", "--model", "auto", "--contact", "impact"], {"tr.csv": VALID},
+         "--model auto does not take --contact"),
+        (["fit", "tr.csv", "--model", "auto", "--c-f", "100"], {"tr.csv": VALID},
+         "--model auto does not take --c-f"),
+        (["fit", "tr.csv", "tr.csv", "--model", "auto"], {"tr.csv": VALID},
+         "--model auto does not take several traces"),
     ],
 )
 def test_fit_errors_one_line_exit_2(tmp_path, monkeypatch, capsys, args, files, match):
@@ -200,5 +209,67 @@ def test_fit_help_lists_options():
     r = run_cli("fit", "--help")
     assert r.returncode == 0
     for opt in ("--structure", "--params", "--model", "--impact", "--r", "--columns",
-                "--units", "--drop-nan", "--starts", "--plot", "--json"):
+                "--units", "--drop-nan", "--starts", "--plot", "--json", "--offset",
+                "--drift"):
         assert opt in r.stdout
+    assert "auto" in r.stdout and "AIC" in r.stdout
+
+
+class _Called(Exception):
+    pass
+
+
+@pytest.mark.parametrize(
+    "flags, expected",
+    [
+        ([], {"model": "simplified", "offset": None, "drift": False}),
+        (["--offset", "yes"], {"offset": True}),
+        (["--offset", "no", "--drift"], {"offset": False, "drift": True}),
+        (["--offset", "auto"], {"offset": None}),
+        (["--model", "auto", "--drift"], {"model": "auto", "params": None, "drift": True}),
+    ],
+)
+def test_fit_options_reach_fit_decay(tmp_path, monkeypatch, flags, expected):
+    """--model auto, --offset and --drift become fit_decay's model=, offset= and drift=
+    (fit_decay itself replaced: no fit runs)."""
+    import identification
+
+    seen = {}
+
+    def fake(trace, structure, params, **kw):
+        seen.update(kw, params=params)
+        raise _Called
+
+    (tmp_path / "tr.csv").write_text(VALID)
+    monkeypatch.setattr(identification, "fit_decay", fake)
+    with pytest.raises(_Called):
+        main(["fit", str(tmp_path / "tr.csv"), *flags])
+    for key, value in expected.items():
+        assert seen[key] == value, key
+
+
+@pytest.mark.slow  # fits every rung of the ladder (minutes on 2 cores)
+def test_fit_model_auto_prints_the_ranking(tmp_path, capsys):
+    import numpy as np
+
+    trace, _ = identification.synthetic_trace(k_f=700e3, r=0.8, duration=2.0, rate_hz=100.0,
+                                              seed=100)
+    csv = tmp_path / "sdof.csv"
+    np.savetxt(csv, np.column_stack([trace.t, trace.u]), delimiter=",", header="t,u",
+               comments="")
+    assert main(["fit", str(csv), "--model", "auto", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ranks = out["ranking"]
+    assert [r["rank"] for r in ranks] == [1, 2, 3, 4]
+    assert {r["model"] for r in ranks} == {
+        "simplified", "rigid_body", "two_spring_2dof (contact impact)",
+        "two_spring_2dof (contact continuous)"}
+    assert ranks[0]["model"] == "simplified" and not ranks[0]["lack_of_fit"]
+    assert out["model"]["model"] == "simplified"
+    assert out["model"]["chosen_by"] == "--model auto"
+    assert out["fitted_model"].startswith("simplified")
+    assert main(["fit", str(csv), "--model", "auto"]) == 0  # compiled: seconds
+    text = capsys.readouterr().out
+    assert "model auto    the rungs of the ladder" in text
+    assert "| 1 | simplified |" in text and "chosen        simplified:" in text
+    assert "simplified model, impact rule paper" in text

@@ -31,10 +31,13 @@ from ._common import (
 #: the library parameters that the options of `rockjax fit` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, "structure": "--structure", "columns": "--columns",
          "units": "--units", "drop_nan": "--drop-nan", "contact": "--contact", "c_f": "--c-f",
-         "starts": "--starts", "params": "--params"}
+         "starts": "--starts", "params": "--params", "offset": "--offset", "drift": "--drift"}
 _PARAMS = ("k_f", "r", "u0", "t0", "c_f")
 _CONTACTS = ("impact", "continuous")  # identification.CONTACTS (not imported: heavy)
 _CHANNELS = ("t", "u", "uplift", "theta")
+#: --offset -> fit_decay's offset=: where the trace pins it (None), always, never
+_OFFSET = {"auto": None, "yes": True, "no": False}
+AUTO = "auto"  # --model auto: every rung of the ladder fitted and ranked (identification._auto)
 
 
 def _channel_map(option):
@@ -71,7 +74,8 @@ def add_parser(subparsers):
         "reports standard errors, the k_f-r correlation, identifiability warnings, a "
         "lack-of-fit check (residuals that are not noise: the model cannot represent the "
         "trace, the standard errors do not hold, and the next model up the ladder), and "
-        "what was read. The 2-DOF body's fits take minutes.",
+        "what was read. --model auto fits the rungs of the ladder and keeps the one the "
+        "trace requires (the ranking is printed). The 2-DOF body's fits take minutes.",
     )
     f.add_argument("trace", metavar="TRACE.csv", nargs="+",
                    help="decay trace (time, displacement, optional uplift); several traces "
@@ -88,7 +92,13 @@ def add_parser(subparsers):
         "and the detected release (u0, t0); c_f only with two_spring_2dof")
     add_model_arguments(f, "model of the ladder (default simplified): the SDOF laws, "
                         "rigid_body, or two_spring_2dof, the 2-DOF body on its springs (see "
-                        "--contact)", fidelity=False)
+                        "--contact); or auto: the rungs simplified, rigid_body and "
+                        "two_spring_2dof with impact and with continuous contact, each fitted "
+                        "with its default parameters and ranked (residuals that are noise "
+                        "first, then by AIC), the table printed (minutes: every rung is a "
+                        "full fit)", fidelity=False)
+    model_action = next(a for a in f._actions if a.dest == "model")
+    model_action.choices = [*model_action.choices, AUTO]
     f.add_argument(
         "--contact", choices=list(_CONTACTS),
         help="contact law of the 2-DOF body (two_spring_2dof only): impact (its default: a "
@@ -99,6 +109,13 @@ def add_parser(subparsers):
         help="dashpot coefficient c_f of the 2-DOF body [N s/m]: the start when c_f is "
         "fitted (default 5 %% of critical of the vertical mode, 0.05 sqrt(2 k_f (m_e + "
         "m_b))), else the value held (default 0: no dashpots)")
+    f.add_argument(
+        "--offset", choices=list(_OFFSET), default="auto",
+        help="fit the sensor's zero of each channel (offset, offset_uplift [m]) as nuisance "
+        "parameters: auto (default: where the trace pins it, i.e. two cycles of motion "
+        "after the release or a rest at the end), yes (always) or no (never)")
+    f.add_argument("--drift", action="store_true",
+                   help="also fit a linear drift of the displacement sensor [m/s]")
     f.add_argument("--columns", type=_channel_map("--columns"),
                    metavar="t=NAME,u=NAME[,uplift=NAME]",
                    help="the columns to read, by header name (other columns are ignored)")
@@ -115,9 +132,10 @@ def add_parser(subparsers):
 
 
 def fit_trace(trace, structure, params, *, model="simplified", impact="paper", r=None,
-              starts=None, progress=None, contact=None, c_f=None):
+              starts=None, progress=None, contact=None, c_f=None, offset=None, drift=False):
     """`identification.fit_decay` from the structure's k_f and Eq 3 r (`r`: the start, also
-    the held value when r is not fitted; `c_f`: the start or held value of c_f).
+    the held value when r is not fitted; `c_f`: the start or held value of c_f; `offset`,
+    `drift`: fit_decay's).
     IdentifiabilityWarnings (LackOfFitWarnings included) and OutlierWarnings are captured
     (their messages are in `fit.warnings`, printed by the caller), other warnings are
     passed on. `params` None: the model's default parameters."""
@@ -132,7 +150,8 @@ def fit_trace(trace, structure, params, *, model="simplified", impact="paper", r
             warnings.simplefilter("always", cls)
         fit = identification.fit_decay(
             trace, structure, params=None if params is None else tuple(params), model=model,
-            impact=impact, contact=contact, initial=initial, progress=progress, **kwargs)
+            impact=impact, contact=contact, initial=initial, progress=progress,
+            offset=offset, drift=drift, **kwargs)
     for w in caught:
         if not issubclass(w.category, shown):  # those are printed from fit.warnings
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -189,12 +208,30 @@ def _read(args, path):
     return trace, [str(w.message) for w in caught if issubclass(w.category, dropped)]
 
 
+def _check_auto(args):
+    """--model auto against the options that name one model's parameters or contact law."""
+    for given, flag, why in (
+            (args.params is not None, "--params", "each rung is fitted with its own default "
+             "parameters"),
+            (args.contact is not None, "--contact", "both contact laws of the 2-DOF body are "
+             "rungs"),
+            (args.c_f is not None, "--c-f", "c_f would be held in the impact rung"),
+            (len(args.trace) > 1, "several traces", "it ranks the rungs on one trace; fit "
+             "each trace with --model auto, then the traces jointly with the model chosen")):
+        if given:
+            raise CLIError(f"--model auto does not take {flag}: {why}")
+
+
 def _check_model_options(args, identification):
-    """--params, --contact, --c-f and --r against the model, in the command line's terms."""
+    """--params, --contact, --c-f and --r against the model, in the command line's terms
+    (None for --model auto)."""
     if args.params is not None and len(set(args.params)) != len(args.params):
         raise CLIError(f"--params: each parameter at most once, got {' '.join(args.params)}")
     if args.r is not None and not 0.0 < args.r < 1.0:
         raise CLIError(f"--r must lie strictly inside (0, 1) for a fit, got {args.r}")
+    if args.model == AUTO:
+        _check_auto(args)
+        return None
     try:
         fm = identification.resolve_model(args.model, args.impact, args.contact)
     except ValueError as e:  # --model and --impact are argparse choices: --contact
@@ -213,6 +250,8 @@ def _fit_model_info(args, s, fit, fm):
     """`model_info(args)` for a fit: r is fitted (from Eq 3 or --r), held, or not used
     (continuous contact); for the 2-DOF body, its contact law and c_f."""
     info = model_info(args)
+    if getattr(args, "chosen_by", None):
+        info["chosen_by"] = f"--model {args.chosen_by}"
     r0 = float(s.restitution) if args.r is None else float(args.r)
     src = "Eq 3" if args.r is None else "--r"
     if "r" in fit.names:
@@ -232,6 +271,24 @@ def _fit_model_info(args, s, fit, fm):
     return info
 
 
+def _chosen(args, fit, identification):
+    """(args as if the rung `--model auto` chose had been named, its FitModel)."""
+    model, contact = fit.ranking[0]["rung"]
+    chosen = argparse.Namespace(**{**vars(args), "model": model, "contact": contact,
+                                   "chosen_by": AUTO})
+    return chosen, identification.resolve_model(model, args.impact, contact)
+
+
+def ranking_lines(fit):
+    """The ranking of `--model auto` as text: the table, then the rung chosen and why."""
+    best = fit.ranking[0]
+    why = ("its residuals are noise and its AIC is the lowest of those" if not
+           best["lack_of_fit"] and best["converged"] else "no rung's residuals are noise "
+           "(or no such fit converged): the lowest AIC; see the lack-of-fit line above")
+    return (f"\nmodel auto    the rungs of the ladder, best first (AIC = n ln(RSS/n) + 2k):\n"
+            f"{fit.ranking_text()}\nchosen        {best['model']}: {why}")
+
+
 def run(args):
     """One trace, or several fitted jointly (shared k_f, r or c_f; u0, t0 of each trace)."""
     import identification  # heavy (optax, the fit's JAX code): only when a fit runs
@@ -247,7 +304,10 @@ def run(args):
         read_warnings += [f"{path}: {m}" for m in msgs] if joint else msgs
     fit = fit_trace(traces if joint else traces[0], s, args.params, model=args.model,
                     impact=args.impact, r=args.r, starts=args.starts,
-                    progress=False if args.json else None, contact=args.contact, c_f=args.c_f)
+                    progress=False if args.json else None, contact=args.contact, c_f=args.c_f,
+                    offset=_OFFSET[args.offset], drift=args.drift)
+    if args.model == AUTO:  # the report is the chosen rung's, with the ranking beside it
+        args, fm = _chosen(args, fit, identification)
     info = _fit_model_info(args, s, fit, fm)
     if args.plot:
         fig = (plot_joint_fit(traces, fit, title=f"joint fit of {len(traces)} traces, "
@@ -268,6 +328,8 @@ def run(args):
         print(json.dumps(out))
         return 0
     (_print_joint if joint else _print_report)(args, s, traces, fit, info, read_warnings)
+    if fit.ranking:
+        print(ranking_lines(fit))
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

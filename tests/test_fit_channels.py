@@ -69,6 +69,7 @@ def test_rotation_only_trace(column, motion):
     assert fit.release["channel"] == "theta"
 
 
+@pytest.mark.slow  # a compile of its own (~20 s); the rotation-only fit stays in the default suite
 def test_uplift_only_trace(column, motion):
     """The uplift alone pins k_f too: the time spent in contact between lift-offs (the
     springs' oscillation, zero uplift) depends on it, and the landings pin the zero."""
@@ -79,6 +80,7 @@ def test_uplift_only_trace(column, motion):
     _check_recovery(fit, column, 0.03)
 
 
+@pytest.mark.slow  # a compile of its own (~20 s); the rotation-only fit stays in the default suite
 def test_displacement_and_rotation_trace(column, motion):
     """u and theta together: two residual channels, each with its own zero."""
     t, u, theta, up = motion
@@ -128,6 +130,7 @@ def test_release_in_the_rotation(column, motion):
     assert "level_rad" in rel.as_dict()
 
 
+@pytest.mark.slow  # a compile of its own (~20 s); the rotation-only fit stays in the default suite
 def test_cli_reads_a_rotation_column(column, motion, tmp_path, capsys):
     """`rockjax fit --columns t=t,theta=NAME` fits the rotation (in degrees here); the
     report gives the rms residual in rad. In process: the rotation fit above compiled it."""

@@ -546,6 +546,7 @@ def test_ended_member_takes_nothing_from_the_padding(column, mixed):
     assert np.all(u0[after] == u0[after][0]) and np.any(np.diff(np.asarray(full.u)[1][after]))
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_mixed_records_on_every_method(column, mixed):
     """GroundMotions in the sequence (their own scale folded in), a t1 cap, and the
     dopri5 and diffrax methods agree with rk4."""

@@ -55,6 +55,7 @@ def _check_recovery(fit, column, tol_kf):
     assert abs(fit.values["k_f"] - float(column.k_f)) < 3 * fit.stderr["k_f"]
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_rotation_only_trace(column, motion):
     """theta alone: the release is found in the rotation, u0 maps to the initial rotation,
     the rotation's zero is a nuisance parameter (offset_theta [rad])."""

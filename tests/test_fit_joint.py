@@ -199,6 +199,7 @@ def _simulate_cli(tmp_path, env_cache, *flags):
                           cwd=tmp_path, env=env, timeout=600)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_cli_writes_the_compile_cache_unless_turned_off(tmp_path):
     cache = tmp_path / "cache"
     r = _simulate_cli(tmp_path, str(cache))

@@ -53,6 +53,7 @@ def offset_fits(noisy):
 # ----------------------------------------------------------------------------- offsets
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_offset_is_fitted_by_default_and_recovered(noisy, offset_fits):
     _, truth = noisy
     base = offset_fits[0.0][0]

@@ -78,7 +78,7 @@ def noisy():
 @pytest.mark.parametrize(
     "start",
     [
-        pytest.param({"k_f": 20.0}, id="k_f-20x-truth"),
+        pytest.param({"k_f": 20.0}, id="k_f-20x-truth", marks=pytest.mark.slow),  # suite in 8 min
         pytest.param({"k_f": "k_min"}, id="k_f-just-above-stability-limit"),
         pytest.param({"r": 0.05}, id="r-0.05"),
         pytest.param({"r": 0.99}, id="r-0.99"),

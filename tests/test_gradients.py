@@ -73,6 +73,7 @@ def test_loss_gradient(column, trace, method):
         assert abs(float(g[j]) - fd) <= rtol * abs(fd) + floor, (j, float(g[j]), fd)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_record_sample_gradient(column):
     """d peak|u| / d a_g(t_i) by one reverse pass, against central differences at a few
     samples (rk4, a short synthetic record)."""

@@ -121,6 +121,7 @@ def fit_json(kind, folder):
     return out
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_hold_before_the_release(folder):
     out = fit_json("hold", folder)
     rel = out["release"]
@@ -140,6 +141,7 @@ def test_millimetres_under_a_header_with_units(folder):
     assert tr["max_abs_u_m"] == pytest.approx(0.1, abs=2e-3) and tr["has_uplift"] is False
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_text_report_states_what_produced_the_numbers(folder):
     # the mm variant with one extra row with a missing value (refused without --drop-nan)
     path = make_variant("mm", folder)

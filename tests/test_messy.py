@@ -268,6 +268,7 @@ def test_command_line_names_the_override(tmp_path, capsys):
         assert parser.parse_args([*argv, "--no-plausibility-check"]).check_plausible is False
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_time_tolerance_on_the_command_line(tmp_path):
     """`--time-tolerance` loosens the jitter a record's time column may have: refused by
     default naming the option, resampled (with its warning) when allowed."""

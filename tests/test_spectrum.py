@@ -364,6 +364,7 @@ def _cli(*args, fail=False):
     return proc.stdout if not fail else proc.stderr
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_cli_spectrum_json_plot_csv(tmp_path):
     d = json.loads(_cli("--pulse", "rectangular", "--ratios", "1,2", "--plot",
                         str(tmp_path / "s.png"), "--out", str(tmp_path / "s.csv"), "--json"))

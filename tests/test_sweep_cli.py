@@ -353,6 +353,7 @@ def test_sweep_errors_no_traceback_subprocess(tmp_path, args, match):
     _one_line(r.returncode, r.stderr, match)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes); CI runs it
 def test_sweep_runs_the_2dof_body(tmp_path):
     """`--model two_spring_2dof`: the 2-DOF body is batched like the SDOF models, and the
     CSV rows equal rockjax.simulate_batch's summaries."""

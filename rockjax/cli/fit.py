@@ -328,7 +328,7 @@ def run(args):
         print(json.dumps(out))
         return 0
     (_print_joint if joint else _print_report)(args, s, traces, fit, info, read_warnings)
-    if fit.ranking:
+    if getattr(fit, "ranking", None):  # --model auto (one trace; a joint fit has none)
         print(ranking_lines(fit))
     if args.plot:
         print(f"plot written to {args.plot}")

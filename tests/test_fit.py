@@ -126,9 +126,11 @@ def test_model_mismatch_bias_is_reported():
     # check flags (tests/test_fit_models.py)
     with pytest.warns(identification.LackOfFitWarning,
                       match="the simplified model cannot represent this trace"):
+        # offset=False: the test is about the model's misfit; a fitted sensor zero would
+        # absorb part of it (and k_f then goes unpinned: open, see the closing note)
         fit = fit_decay(trace, rockjax.mcmanus_column(), ("k_f", "r"),
                         initial={"k_f": truth["k_f"], "r": truth["r"]}, starts=1,
-                        progress=False)
+                        progress=False, offset=False)
     bias = {p: fit.values[p] / truth[p] - 1 for p in ("k_f", "r")}
     print("model-mismatch bias (exact -> simplified):", bias, "rms", fit.rms,
           fit.lack_of_fit)

@@ -46,7 +46,8 @@ def recorded_fit(trace, **kwargs):
         t0 = time.perf_counter()
         fit = fit_decay(trace, structure, **kwargs)
         wall = time.perf_counter() - t0
-    flags = (identification.IdentifiabilityWarning, identification.OutlierWarning)
+    flags = (identification.IdentifiabilityWarning, identification.OutlierWarning,
+             identification.ConvergenceWarning)  # an unconverged fit warns (issue 24)
     assert all(issubclass(w.category, flags) for w in caught), [
         (w.category.__name__, str(w.message)) for w in caught]
     assert sorted(str(w.message) for w in caught) == sorted(fit.warnings)
@@ -212,7 +213,8 @@ def sdof_of_2dof(continuous):
 def test_2dof_body_recovers_k_f_from_its_dashpot_trace(twodof_fit, continuous):
     fit, wall, caught = twodof_fit
     _, truth = continuous
-    assert fit.names == ("k_f", "c_f", "u0", "t0") and fit.converged
+    # then the sensor's zero, a nuisance parameter fitted by default (issue 24)
+    assert fit.names[:4] == ("k_f", "c_f", "u0", "t0") and fit.converged
     assert "r" not in fit.fixed and any("r is not fitted" in n for n in fit.notes)
     err = fit.values["k_f"] / truth["k_f"] - 1
     print(f"2-DOF fit: k_f error {100 * err:+.2f} %, c_f {fit.values['c_f']:.1f} "

@@ -177,8 +177,9 @@ def fit_decay(
       default parameters, the one whose residuals are noise with the lowest AIC returned
       (else the lowest AIC), its `ranking` holding the table (`FitResult.ranking_text`;
       a 2-DOF rung whose residuals are not noise is fitted again over finer horizons, the
-      better fit kept; minutes: each rung is a full fit). An SDOF impact rule other than the paper's and the 2-DOF body's contact
-      law go on the model object: `rockjax.get_model("simplified", "after_uplift")`,
+      better fit kept; minutes: each rung is a full fit). An SDOF impact rule other than
+      the paper's and the 2-DOF body's contact law go on the model object:
+      `rockjax.get_model("simplified", "after_uplift")`,
       `rockjax.TwoSpring2DOF(contact="continuous")` (the springs and dashpots carry the
       landing; r does not act, c_f is fitted in its place).
     - `initial`: dict of starting values overriding the defaults above (for a parameter

@@ -11,6 +11,11 @@ of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitRe
 """
 
 from ._anomalies import split_releases as split_releases
+from ._bayes import (
+    parse_prior as parse_prior,
+    PosteriorProblem as PosteriorProblem,
+    Prior as Prior,
+)
 from ._fit import fit_decay as fit_decay, Schedule as Schedule
 from ._joint import JointFitResult as JointFitResult
 from ._lack import residual_statistics as residual_statistics

@@ -29,6 +29,19 @@ from ._models import (
     resolve_model as resolve_model,
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
+from ._outcome_grid import (
+    block_threshold_grid as block_threshold_grid,
+    structure_threshold_grid as structure_threshold_grid,
+    ThresholdGrid as ThresholdGrid,
+    uniform_block as uniform_block,
+)
+from ._outcome_table import (
+    OutcomeError as OutcomeError,
+    OutcomeTable as OutcomeTable,
+    read_outcomes as read_outcomes,
+    shakebot_path as shakebot_path,
+)
+from ._outcomes import fit_outcomes as fit_outcomes, OutcomeFit as OutcomeFit
 from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
 from ._problem import NUISANCE as NUISANCE, PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
 from ._release import detect_release as detect_release, Release as Release

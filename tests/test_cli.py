@@ -205,7 +205,7 @@ def test_in_process_main_leaves_the_jax_configuration_alone(monkeypatch, capsys)
 #: the least arguments each command parses with
 _MINIMAL = {"demo": [], "pushover": [], "simulate": [], "fit": ["t.csv"],
             "sweep": ["--record", "r.txt"], "fragility": ["--record", "r.txt", "--scales", "1"],
-            "spectrum": ["--pulse", "sine", "--ratios", "1"]}
+            "spectrum": ["--pulse", "sine", "--ratios", "1"], "fit-outcomes": ["t.csv"]}
 
 
 def _raising(param, **kw):
@@ -217,7 +217,7 @@ def _raising(param, **kw):
 def _mapped():
     from rockjax.cli import COMMANDS, flags
     for module in COMMANDS:
-        command = module.__name__.rsplit(".", 1)[-1]
+        command = getattr(module, "COMMAND", module.__name__.rsplit(".", 1)[-1])
         for param, flag in flags(command).items():
             yield module, command, param, flag
 

@@ -138,6 +138,12 @@ def plot(fit, ax=None, axes="pga-ratio", draws=None):
                 **style)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    from matplotlib.ticker import NullFormatter
+
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    zero = int(np.sum(~pos))
+    if zero:
+        ax.plot([], [], ls="", label=f"(not drawn: {zero} run(s) at zero amplitude, stood)")
     if axes == "pga-ratio":
         ax.set_xlabel("PGV/PGA [s]")
         ax.set_ylabel("PGA [g]")

@@ -24,6 +24,7 @@ JAX-traceable for the sampler.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 
@@ -92,8 +93,11 @@ class ThresholdGrid:
         """The interpolated ln threshold at `coords` (one per axis, broadcast; JAX)."""
         u = jnp.stack(jnp.broadcast_arrays(*[jnp.asarray(c, float) for c in coords]), -1)
         flat = u.reshape(-1, len(self.axes))
-        out = jax.vmap(self._one)(flat)
-        return out.reshape(u.shape[:-1])
+        return self._many(flat).reshape(u.shape[:-1])
+
+    @functools.cached_property
+    def _many(self):
+        return jax.jit(jax.vmap(self._one))
 
     def _one(self, u):
         vals = jnp.asarray(self.values)

@@ -1,9 +1,11 @@
 """Fits to pass/fail outcomes (`identification.read_outcomes`, `fit_outcomes`; issue 25,
 items 2 and 6).
 
-One coarse threshold grid (3 slendernesses x 6 pulse frequencies, rtol 1e-2) is built once
-per session and reused by every fit here; the CLI's in-process runs find it in the fit's
-per-process cache. The ShakeBot table is read from the shared folder
+The default tests run no overturning spectrum: their coarse threshold grid (3 slendernesses
+x 6 pulse frequencies, rtol 1e-2) is `STORED`, the values `block_threshold_grid` gave with
+those settings, and a slow test rebuilds it and compares (and checks the interpolant
+against direct spectra between the nodes). The CLI's in-process runs find the grid in the
+fit's per-process cache. The ShakeBot table is read from the shared folder
 (`$ROCKJAX_SHAKEBOT`, or `shakebot/exp270.csv` beside `$ROCKJAX_SHARED_DATA`) and the tests
 that need it skip where it is absent.
 """
@@ -30,6 +32,16 @@ from rockjax.cli import main
 G = 9.80665
 ALPHAS = [0.1, 0.2, 0.3]
 XS = np.geomspace(0.25, 8.0, 6)
+SETTINGS = dict(alphas=ALPHAS, x=XS, amplitude_rtol=1e-2, n_scan=16)
+#: ln(a_c / (g tan alpha)) of `block_threshold_grid("one_cosine", **SETTINGS)`, rows x,
+#: columns alpha (rockjax at commit bff5b8b; `test_the_stored_grid_is_rockjax_s` rebuilds it)
+STORED = np.array([
+    [0.006845898080, 0.029665558345, 0.027383592318],
+    [0.031947524371, 0.050203252584, 0.073022912849],
+    [0.066177014770, 0.088996675035, 0.109534369274],
+    [0.201098256088, 0.221065458821, 0.338016217680],
+    [0.984097848943, 1.100478116296, 2.277972585988],
+    [3.519219481547, 3.523498167846, 3.532055540446]])
 
 
 def shakebot_file() -> pathlib.Path | None:
@@ -56,12 +68,21 @@ def shakebot():
 
 @pytest.fixture(scope="session")
 def grid():
-    """The coarse block grid of every fit here, also put in the fits' per-process cache."""
+    """The coarse block grid of every fit here (`STORED`), also put in the fits'
+    per-process cache."""
     rockjax.configure()
-    g = identification.block_threshold_grid("one_cosine", alphas=ALPHAS, x=XS,
-                                            amplitude_rtol=1e-2, n_scan=16)
+    g = identification.ThresholdGrid(
+        "one_cosine", "rigid_body", ("ln_x", "alpha"), (np.log(XS), np.asarray(ALPHAS)),
+        STORED, ("linear", "clamp"), {"amplitude_rtol": 1e-2, "n_scan": 16})
     _outcomes._GRIDS[("one_cosine", "rigid_body")] = g
     return g
+
+
+@pytest.mark.slow
+def test_the_stored_grid_is_rockjax_s():
+    built = identification.block_threshold_grid("one_cosine", **SETTINGS)
+    np.testing.assert_allclose(built.values, STORED, atol=0.02)
+    assert built.axes == ("ln_x", "alpha") and built.n_runs > 0
 
 
 def write(tmp_path, text, name="runs.csv"):

@@ -270,44 +270,19 @@ def read_outcomes(path, *, kind=None, amplitude_unit=None, drop_unknown_labels=F
                            f"{sorted(kinds)}: fit one kind at a time")
     kind = _kind(kinds.pop() if kinds else kind if kind is not None else
                  "one_cosine" if shakebot else None)
-    per, amp, y, lines, dropped = [], [], [], [], []
-    for j, r in enumerate(rows[1:], start=2):
-        if len(r) < len(header):
-            raise OutcomeError(f"{path}, line {j}: {len(r)} fields, the header has "
-                               f"{len(header)}")
-        label = parse_label(r[i_out])
-        if label is None:
-            if drop_unknown_labels:
-                dropped.append((j, r[i_out]))
-                continue
-            raise OutcomeError(
-                f"{path}, line {j}: outcome {r[i_out]!r} in column {rows[0][i_out]!r} is "
-                "neither toppled (Y, yes, true, 1, toppled) nor stood (N, no, false, 0, "
-                "stood)", param="drop_unknown_labels", value=True,
-                advice="; to drop such rows (they are reported), pass {}")
-        if i_per is not None:
-            per.append(_number(r[i_per], j, rows[0][i_per]))
-        else:
-            per.append(_RATIO_TO_PERIOD[kind] * _number(r[i_rat], j, rows[0][i_rat]))
-        amp.append(_number(r[i_amp], j, rows[0][i_amp], zero=True) * _AMP_UNITS[unit])
-        if amp[-1] == 0 and label == 1:
-            raise OutcomeError(f"{path}, line {j}: toppled at zero amplitude (column "
-                               f"{rows[0][i_amp]!r}): no model can explain it")
-        y.append(label)
-        lines.append(j)
+    per, amp, y, lines, dropped = _read_rows(path, rows, (i_per, i_rat, i_amp, i_out),
+                                             kind, unit, drop_unknown_labels)
     if dropped:
         warnings.warn(f"{path}: dropped {len(dropped)} row(s) with an unknown outcome label: "
                       + ", ".join(f"line {r} ({v!r})" for r, v in dropped),
                       DroppedRowsWarning, stacklevel=2)
-    per = np.asarray(per)
     pulse = {"one_cosine": "a(t) = PGA cos(2 pi t/T), T = 2 pi PGV/PGA",
              "one_sine": "a(t) = PGA sin(2 pi t/T), T = pi PGV/PGA",
              "rectangular": "a(t) = PGA for t1 = PGV/PGA"}[kind]
     meaning = (f"{kind} pulses, {pulse}, " if i_per is None else f"{kind} pulses, "
                ) + f"amplitude in {unit}"
-    if len(y) == 0 or np.all(np.asarray(y) == y[0]):
-        _check_two_classes(np.asarray(y, int), str(path))
-    return OutcomeTable(kind, per, np.asarray(amp), np.asarray(y, int),
+    _check_two_classes(y, str(path))
+    return OutcomeTable(kind, per, amp, y,
                         per / _RATIO_TO_PERIOD[kind], rows=tuple(lines), dropped=tuple(dropped),
                         source=str(path), meaning=meaning + (" (the ShakeBot layout)"
                                                              if shakebot else ""))
@@ -368,3 +343,35 @@ def shakebot_path(*, local=None, download=True) -> pathlib.Path:
     finally:
         pathlib.Path(tmp).unlink(missing_ok=True)
     return cached
+
+
+def _read_rows(path, rows, cols, kind, unit, drop_unknown_labels):
+    """(period [s], amplitude [m/s²], toppled, lines, dropped) of the rows after the header."""
+    i_per, i_rat, i_amp, i_out = cols
+    header = rows[0]
+    per, amp, y, lines, dropped = [], [], [], [], []
+    for j, r in enumerate(rows[1:], start=2):
+        if len(r) < len(header):
+            raise OutcomeError(f"{path}, line {j}: {len(r)} fields, the header has "
+                               f"{len(header)}")
+        label = parse_label(r[i_out])
+        if label is None:
+            if drop_unknown_labels:
+                dropped.append((j, r[i_out]))
+                continue
+            raise OutcomeError(
+                f"{path}, line {j}: outcome {r[i_out]!r} in column {rows[0][i_out]!r} is "
+                "neither toppled (Y, yes, true, 1, toppled) nor stood (N, no, false, 0, "
+                "stood)", param="drop_unknown_labels", value=True,
+                advice="; to drop such rows (they are reported), pass {}")
+        if i_per is not None:
+            per.append(_number(r[i_per], j, rows[0][i_per]))
+        else:
+            per.append(_RATIO_TO_PERIOD[kind] * _number(r[i_rat], j, rows[0][i_rat]))
+        amp.append(_number(r[i_amp], j, rows[0][i_amp], zero=True) * _AMP_UNITS[unit])
+        if amp[-1] == 0 and label == 1:
+            raise OutcomeError(f"{path}, line {j}: toppled at zero amplitude (column "
+                               f"{rows[0][i_amp]!r}): no model can explain it")
+        y.append(label)
+        lines.append(j)
+    return np.asarray(per), np.asarray(amp), np.asarray(y, int), lines, dropped

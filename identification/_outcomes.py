@@ -6,10 +6,10 @@ model `rigid_body` by default) computed once on a grid and interpolated smoothly
 (`identification._outcome_grid`). The fit minimises the negative log-likelihood from a
 grid of starts (BFGS with exact gradients of the interpolant); the 90 % intervals are the
 Laplace approximation in the unconstrained coordinates (the inverse Hessian of the NLL at
-the optimum, by central differences of the exact gradient, ±1.645 standard deviations, mapped back: asymmetric for R, β, and kept inside
-the grid for α, k_f, r). The baselines: a constant and a three-parameter probit in
-(ln PGA, ln PGV/PGA), each with its NLL; `OutcomeFit.cross_validate` compares their held-out
-log loss.
+the optimum, by central differences of the exact gradient; ±1.645 standard deviations,
+mapped back: asymmetric for R and β, kept inside the grid for α, k_f, r). The baselines: a
+constant and a three-parameter probit in (ln PGA, ln PGV/PGA), each with its NLL;
+`OutcomeFit.cross_validate` compares their held-out log loss.
 """
 
 from __future__ import annotations
@@ -178,8 +178,8 @@ class OutcomeFit:
         b = pm.bounds
         defaults = {"alpha": Prior.uniform(*b.get("alpha", (0.04, 0.64))),
                     "R": Prior.lognormal(0.3, 1.5), "beta": Prior.halfnormal(0.5),
-                    "k_f": Prior.lognormal(float(pm.fixed.get("k_f", self.estimates["k_f"]))
-                                           if "k_f" in self.estimates else 1e6, 1.0),
+                    "k_f": Prior.lognormal(float(pm.structure.k_f) if pm.structure is not None
+                                           else 1e6, 1.0),
                     "r": Prior.uniform(*b.get("r", (0.3, 0.98)))}
         pri = parse_priors(priors, pm.free, {n: defaults[n] for n in pm.free})
         data = (jnp.asarray(t.amplitude), jnp.asarray(t.period), jnp.asarray(t.toppled),

@@ -27,7 +27,7 @@ FLAGS = {"model": COMMON_FLAGS["model"], "check_plausible": COMMON_FLAGS["check_
          "drop_unknown_labels": "--drop-unknown-labels", "kind": "--pulse",
          "amplitude_unit": "--amplitude-unit", "free": "--params"}
 _PARAMS = ("alpha", "R", "beta", "k_f", "r")
-_MODELS = ("rigid_body", "simplified", "two_spring_2dof")
+_MODELS = ("rigid_body", "simplified")
 
 
 def add_parser(subparsers):
@@ -43,9 +43,10 @@ def add_parser(subparsers):
         "that overturns the specimen on rockjax's model (rigid_body by default), for a "
         "uniform block of unknown slenderness alpha and half-diagonal R, or for the "
         "structure of --structure (k_f, r). A_c is computed on a grid of overturning "
-        "spectra (about a minute on 2 cores) and interpolated smoothly. Prints the "
-        "estimates with 90 %% intervals and the negative log-likelihood beside a "
-        "three-parameter probit in (ln PGA, ln PGV/PGA) and a constant.",
+        "spectra (one to two minutes on 2 cores, once per run of the command) and "
+        "interpolated smoothly. Prints the estimates with 90 % intervals and the "
+        "negative log-likelihood beside a three-parameter probit in (ln PGA, ln PGV/PGA) "
+        "and a constant.",
     )
     f.add_argument("table", metavar="TABLE.csv", help="the runs: pulse, amplitude, outcome")
     f.add_argument("--structure", metavar="FILE.toml",

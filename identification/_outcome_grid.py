@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 import time
 
@@ -119,6 +120,32 @@ class ThresholdGrid:
         for a in reversed(range(d)):
             block = _hermite(block, ts[a], idx[a], len(self.nodes[a]))
         return block
+
+    def save(self, path) -> None:
+        """Write the grid to `path` (NumPy .npz: the nodes, the values and the rest as
+        JSON), for `ThresholdGrid.load` in a later process."""
+        meta = {"kind": self.kind, "model": self.model, "axes": list(self.axes),
+                "extrapolate": list(self.extrapolate), "settings": self.settings,
+                "build_time": self.build_time, "n_runs": self.n_runs, "format": 1}
+        arrays = {f"nodes_{i}": np.asarray(n) for i, n in enumerate(self.nodes)}
+        with open(path, "wb") as f:
+            np.savez(f, values=np.asarray(self.values), meta=np.array(json.dumps(meta)),
+                     **arrays)
+
+    @classmethod
+    def load(cls, path) -> ThresholdGrid:
+        """A grid written by `save` (ValueError naming the file if it is not one)."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                nodes = tuple(np.asarray(z[f"nodes_{i}"]) for i in range(len(meta["axes"])))
+                values = np.asarray(z["values"])
+        except (OSError, KeyError, ValueError) as e:
+            raise ValueError(f"{path}: not a threshold grid written by ThresholdGrid.save "
+                             f"({e})") from None
+        return cls(meta["kind"], meta["model"], tuple(meta["axes"]), nodes, values,
+                   tuple(meta["extrapolate"]), meta["settings"], meta["build_time"],
+                   meta["n_runs"])
 
     def summary(self) -> dict:
         """The grid's axes, sizes, ranges and cost (plain values)."""
@@ -223,7 +250,8 @@ def structure_threshold_grid(structure, kind="one_cosine", *, periods, free=("k_
         values[(slice(None), *index)] = np.log(sp.amplitude)
         runs += sp.n_runs
     return ThresholdGrid(kind, model, tuple(axes), tuple(nodes), values, tuple(extra),
-                         {"amplitude_rtol": amplitude_rtol, "n_scan": n_scan},
+                         {"amplitude_rtol": amplitude_rtol, "n_scan": n_scan,
+                          "structure": structure.to_dict()},
                          time.perf_counter() - start, runs)
 
 

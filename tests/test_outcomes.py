@@ -264,6 +264,23 @@ def test_cli_json_and_errors(shakebot, grid, tmp_path, capsys):
     assert "--params k_f" in capsys.readouterr().err
 
 
+def test_a_grid_saved_and_read_back_serves_the_cli(shakebot, grid, tmp_path, capsys):
+    path = tmp_path / "grid.npz"
+    grid.save(path)
+    back = identification.ThresholdGrid.load(path)
+    assert back.axes == grid.axes and back.settings == grid.settings
+    np.testing.assert_array_equal(back.values, grid.values)
+    assert main(["fit-outcomes", str(shakebot), "--grid", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["grid"]["sizes"] == [6, 3]
+    assert main(["fit-outcomes", str(shakebot), "--grid", str(path), "--model",
+                 "simplified"]) == 2
+    assert "--grid" in capsys.readouterr().err
+    (tmp_path / "bad.npz").write_bytes(b"not a grid")
+    with pytest.raises(ValueError, match="not a threshold grid"):
+        identification.ThresholdGrid.load(tmp_path / "bad.npz")
+
+
 @pytest.mark.slow
 def test_cross_validation_physics_wins_on_shakebot(shakebot, grid):
     fit = identification.fit_outcomes(shakebot, grid=grid)

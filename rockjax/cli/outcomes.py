@@ -8,6 +8,7 @@ and r, and the dispersion beta of a probit link on rockjax's own overturning thr
 from __future__ import annotations
 
 import json
+import pathlib
 import warnings
 
 from ._common import (
@@ -69,10 +70,30 @@ def add_parser(subparsers):
     f.add_argument("--cv", type=converter("--cv", int, lambda n: n >= 2, "be at least 2"),
                    metavar="K", help="also K-fold cross-validation: the held-out log loss "
                    "of the physics model, the probit and the constant")
+    f.add_argument("--grid", metavar="FILE.npz",
+                   help="the threshold grid: read from FILE if it exists (it must be of "
+                   "the same pulse, model and specimen kind), else built and written there, "
+                   "so that a later run skips the build")
     add_outputs(f, "draw the runs with the fitted boundary and its band (PGA against "
                 "PGV/PGA)")
     f.set_defaults(func=run)
     return f
+
+
+def _grid(args, identification, table, structure, free):
+    """The grid of --grid when its file exists (checked against the run), else None."""
+    if not args.grid or not pathlib.Path(args.grid).exists():
+        return None
+    g = identification.ThresholdGrid.load(args.grid)
+    block = "alpha" in g.axes
+    if g.kind != table.kind or g.model != args.model or block != (structure is None):
+        raise CLIError(f"--grid {args.grid}: a grid of {g.kind} pulses, model {g.model}, "
+                       f"for {'a block' if block else 'a structure'}; this run needs "
+                       f"{table.kind}, {args.model}, "
+                       f"{'a block' if structure is None else 'a structure'}")
+    if structure is not None and g.settings.get("structure") != structure.to_dict():
+        raise CLIError(f"--grid {args.grid}: built for another structure")
+    return g
 
 
 def run(args):
@@ -95,7 +116,11 @@ def run(args):
         table = identification.read_outcomes(args.table, kind=args.pulse,
                                              amplitude_unit=args.amplitude_unit,
                                              drop_unknown_labels=args.drop_unknown_labels)
-        fit = identification.fit_outcomes(table, structure, free=free, model=args.model)
+        grid = _grid(args, identification, table, structure, free)
+        fit = identification.fit_outcomes(table, structure, free=free, model=args.model,
+                                          grid=grid)
+        if args.grid and not pathlib.Path(args.grid).exists():
+            fit.grid.save(args.grid)
     notes = [str(w.message) for w in caught
              if not isinstance(w.message, identification.IdentifiabilityWarning)]
     cv = fit.cross_validate(args.cv) if args.cv else None

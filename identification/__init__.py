@@ -8,6 +8,8 @@ c_f included, and a lack-of-fit check of the residuals; docs/identification.md);
 synthetic traces in `data/` (`synthetic_trace_path`, `synthetic_truth`) are labelled
 synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits several traces
 of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
+`read_outcomes` and `fit_outcomes` fit a specimen to pass/fail runs (toppled or stood under
+pulses) with rockjax's overturning spectra (`OutcomeFit`; docs/outcomes.md).
 """
 
 from ._anomalies import split_releases as split_releases

@@ -142,7 +142,16 @@ def test_shakebot_reads_with_its_documented_meaning(shakebot):
     np.testing.assert_allclose(t.period, 2 * np.pi * t.ratio)
     assert t.ratio[0] == 0.2 and t.amplitude[0] == pytest.approx(0.2 * G)
     assert identification.shakebot_path(local=shakebot) == shakebot
+    assert identification.shakebot_path(local=shakebot.parent) == shakebot
     assert "zero amplitude (line 54)" in t.describe()
+
+
+def test_a_wrong_shakebot_file_is_refused(tmp_path):
+    bad = write(tmp_path, "Date & Time,PGV/PGA,PGA,Rock Status\n", name="exp270.csv")
+    with pytest.raises(ValueError, match="SHA-256"):
+        identification.shakebot_path(local=bad)
+    with pytest.raises(FileNotFoundError, match="not found"):
+        identification.shakebot_path(local=tmp_path / "nothing.csv")
 
 
 # ------------------------------------------------------------------ the threshold grid

@@ -237,7 +237,9 @@ def _runner(structure, model, impact, kind, T, t_free, substeps, devices, n_memb
     """The `_Runner` of one spectrum: each period's pulse on a grid of at most
     `rockjax.pulses.MAX_DT` and of omega h <= 0.5 per substep (the springs)."""
     omega = float(get_model(model, impact).frequency(structure.evaluated()))
-    max_dt = min(_pulses.MAX_DT, substeps * _OMEGA_H / omega)
+    # a model without springs (housner: omega = 0) has no spring step to resolve
+    max_dt = _pulses.MAX_DT if not omega > 0 else min(_pulses.MAX_DT,
+                                                      substeps * _OMEGA_H / omega)
     pulses = tuple(_pulses.pulse(kind, 1.0, t, max_dt=max_dt) for t in T)
     dt = np.array([float(g.dt) for g in pulses])
     n_dev = len(jax.local_devices()) if devices is None else max(1, int(devices))

@@ -413,3 +413,13 @@ def test_simulate_batch_records_on_their_own_steps():
         rockjax.simulate_batch(s, pulses, record_steps="own")
     with pytest.raises(ValueError, match="record_steps must be"):
         rockjax.simulate_batch(s, pulses[0], 1.0, record_steps="own", summary_only=True)
+
+
+def test_runner_of_a_model_without_springs():
+    """`housner` has no springs (frequency 0): its pulses are sampled at the pulses' own
+    limit, not at a step divided by that zero (a ZeroDivisionError before)."""
+    from rockjax import _spectrum, pulses
+
+    runner = _spectrum._runner(rockjax.mcmanus_column(), "housner", "paper", "one_cosine",
+                               np.array([0.5, 1.0]), 1.0, 4, None, 8, None)
+    assert np.all(runner.dt <= pulses.MAX_DT) and np.all(runner.dt > 0)

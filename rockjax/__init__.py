@@ -72,6 +72,7 @@ from ._spectrum import (
     overturning_spectrum as overturning_spectrum,
     OverturningSpectrum as OverturningSpectrum,
 )
+from ._spectrum_band import spectrum_band as spectrum_band, SpectrumBand as SpectrumBand
 from ._status import Status as Status
 from ._structure import (
     DERIVED as DERIVED,

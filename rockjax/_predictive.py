@@ -292,18 +292,8 @@ class FragilityBand:
 
     def report(self) -> str:
         """The band as text: the draws, the runs, θ and β over the draws (median and
-        interval) beside the point estimate's, the IM at P = 10, 50 and 90 % of each curve.
-
-        ```python
-        s = rockjax.mcmanus_column()
-        records = [rockjax.datasets.synthetic_ground_motion(duration=4.0, dt=0.01, pga=3.0,
-                                                            seed=i) for i in range(2)]
-        draws = {"k_f": float(s.k_f) * np.array([0.8, 1.0, 1.25]), "r": [0.7, 0.75, 0.8]}
-        band = rockjax.fragility_band(s, records, np.geomspace(0.3, 4, 8), draws,
-                                      model="rigid_body", tail=1.0)
-        print(band.report())
-        ```
-        """
+        interval) beside the point estimate's, the IM at P = 10, 50 and 90 % of each curve
+        (`print(rockjax.fragility_band(s, records, scales, draws).report())`)."""
         u = f" {self.im_unit}" if self.im_unit != "-" else ""
         c = f"{self.confidence:.0%}"
         lines = [f"draws         {self.n_draws}: " + ", ".join(

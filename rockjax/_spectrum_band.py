@@ -88,15 +88,8 @@ class SpectrumBand:
 
     def report(self) -> str:
         """The draws, then per period (increasing): the point estimate's amplitude, the
-        median and band over the draws [m/s²], and the draws that never overturned.
-
-        ```python
-        s = rockjax.mcmanus_column()
-        draws = {"k_f": float(s.k_f) * np.array([0.7, 1.0, 1.4])}
-        band = rockjax.spectrum_band(s, "sine", [0.5], draws, n_scan=8, amplitude_rtol=0.05)
-        print(band.report())
-        ```
-        """
+        median and band over the draws [m/s²], and the draws that never overturned
+        (`print(rockjax.spectrum_band(s, "sine", periods, draws).report())`)."""
         c = f"{self.confidence:.0%}"
         lines = [f"overturning spectrum over {self.n_draws} draws, {self.kind} pulse, model "
                  f"{self.model}",

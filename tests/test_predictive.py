@@ -251,3 +251,19 @@ def test_spectrum_band_widens_with_the_spread(column, tmp_path):
     assert rc == 0, err
     d = json.loads(out)["spectrum_band"]
     assert d["n_draws"] == 3 and all(lo <= hi for lo, hi in zip(d["lower"], d["upper"]))
+
+
+@pytest.mark.slow
+def test_dashpot_draws_run_one_draw_at_a_time(column, records):
+    """c_f, a field of the 2-DOF body (not of the structure): draws of c_f = 0 are the
+    undamped body's fit; draws of c_f and k_f together run and spread; the spectrum too."""
+    kw = dict(model="two_spring_2dof", tail=TAIL)
+    zero = rockjax.fragility_band(column, records, SCALES, {"c_f": [0.0, 0.0]}, **kw)
+    assert np.all(zero.medians == zero.point.median) and np.all(zero.betas == zero.point.beta)
+    b = rockjax.fragility_band(column, records, SCALES,
+                               {"c_f": [200.0, 5000.0], "k_f": [4e5, 7e5]}, **kw)
+    assert b.counts["fit"] == 2 and b.medians[0] != b.medians[1]
+    assert b.units == {"c_f": "N s/m", "k_f": "N/m"}
+    sb = rockjax.spectrum_band(column, "sine", [0.5], {"c_f": [200.0, 5000.0]},
+                               model="two_spring_2dof", n_scan=8, amplitude_rtol=0.05)
+    assert sb.amplitudes.shape == (2, 1) and np.all(np.isfinite(sb.amplitudes))

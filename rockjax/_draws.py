@@ -30,9 +30,10 @@ SI_UNITS = {"m_e": "kg", "m_b": "kg", "H_e": "m", "H_b": "m", "B": "m", "I_eg": 
             "I_bg": "kg m2", "k_f": "N/m", "g": "m/s2", "r": "-", "c_f": "N s/m"}
 #: the names a draw may set: the structure's fields, r and c_f
 PARAMETERS = tuple(SI_UNITS)
-#: identification's nuisance parameters (release state, sensor zeros and drift): in a
-#: draws file, read and left out (they do not enter a prediction)
-NUISANCE = ("u0", "t0", "offset", "offset_uplift", "offset_theta", "drift")
+#: identification's nuisance parameters (release state, sensor zeros and drift, the clock
+#: offset of a shake-table run): in a draws file, read and left out (they do not enter a
+#: prediction), also with a run's index (`u0[2]`, a joint fit's)
+NUISANCE = ("u0", "t0", "offset", "offset_uplift", "offset_theta", "drift", "clock_offset")
 #: the fewest draws of a band
 MIN_DRAWS = 2
 #: spellings of "dimensionless"
@@ -99,7 +100,7 @@ def _check_columns(path, units, header, ignore):
         if name in seen:
             raise ParameterError(f"{path}: column {name} appears twice", param="draws")
         seen.add(name)
-    unknown = [n for n in header if n not in PARAMETERS and n not in ignore]
+    unknown = [n for n in header if n not in PARAMETERS and not _ignored(n, ignore)]
     if unknown:
         raise ParameterError(
             f"{path}: column {unknown[0]} is not a parameter of a prediction (known: "
@@ -111,7 +112,7 @@ def _check_columns(path, units, header, ignore):
             raise ParameterError(f"{path}: the units line names {extra[0]}, which is not a "
                                  "column", param="draws")
         for name in header:
-            if name in ignore:
+            if _ignored(name, ignore):
                 continue
             if name not in units:
                 raise ParameterError(f"{path}: the units line gives no unit for column {name} "
@@ -121,7 +122,12 @@ def _check_columns(path, units, header, ignore):
                     f"{path}: column {name} is in {units[name]!r}, not its SI unit "
                     f"{SI_UNITS[name]!r}: draws are read in SI units; convert them",
                     param="draws")
-    return [n for n in header if n in PARAMETERS], [n for n in header if n in ignore]
+    return [n for n in header if n in PARAMETERS], [n for n in header if _ignored(n, ignore)]
+
+
+def _ignored(name, ignore):
+    """Whether column `name` is left out: in `ignore`, or `x[i]` with x in `ignore`."""
+    return name in ignore or re.sub(r"\[\d+\]$", "", name) in ignore
 
 
 def read_draws(path, *, ignore=NUISANCE) -> dict:
@@ -133,7 +139,8 @@ def read_draws(path, *, ignore=NUISANCE) -> dict:
     of plain names, then one row of numbers per draw.
 
     **Arguments:** `path`; `ignore`: columns to read and leave out (default `NUISANCE`, a
-    fit's release state and sensor zeros, which do not enter a prediction).
+    fit's release state, sensor zeros and clock offset, which do not enter a prediction;
+    a name also covers its indexed columns, `u0[0]`, `u0[1]`, ... of a joint fit).
 
     **Returns:** a dict of the columns that a prediction uses (the fields of
     `rockjax.RockingStructure`, `r`, `c_f`), each a float array of the same length.

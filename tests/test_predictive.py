@@ -156,6 +156,12 @@ def test_read_draws(tmp_path):
     np.testing.assert_array_equal(d["c_f"], [10.0, 20.0])
     p = write_draws(tmp_path / "n.csv", "k_f,r", [[5e5, 0.7], [6e5, 0.75]], units=None)
     assert list(rockjax.read_draws(p)) == ["k_f", "r"]  # no units line: SI
+    p = write_draws(tmp_path / "j.csv", "k_f,r,u0[0],t0[1],beta",
+                    [[5e5, 0.7, 0, 0, 0.1], [6e5, 0.75, 0, 0, 0.2]],
+                    units="# units: k_f N/m, r -, u0[0] m, t0[1] s, beta -")
+    with pytest.raises(rockjax.ParameterError, match="column beta is not a parameter"):
+        rockjax.read_draws(p)  # a joint fit's indexed nuisances are left out, beta is not
+    assert list(rockjax.read_draws(p, ignore=("u0", "t0", "beta"))) == ["k_f", "r"]
 
 
 @pytest.mark.parametrize("header, rows, units, match", [

@@ -26,6 +26,7 @@ from ._batch import (
 )
 from ._config import Configuration as Configuration, configure as configure
 from ._distributed import Processes as Processes
+from ._draws import read_draws as read_draws
 from ._errors import (
     ConfigurationWarning as ConfigurationWarning,
     ParameterError as ParameterError,
@@ -52,6 +53,7 @@ from ._kinematics import (
     uplift as uplift,
     uplift_from_theta as uplift_from_theta,
 )
+from ._predictive import fragility_band as fragility_band, FragilityBand as FragilityBand
 from ._pushover import (
     overturn_displacement as overturn_displacement,
     pushover as pushover,
@@ -70,6 +72,7 @@ from ._spectrum import (
     overturning_spectrum as overturning_spectrum,
     OverturningSpectrum as OverturningSpectrum,
 )
+from ._spectrum_band import spectrum_band as spectrum_band, SpectrumBand as SpectrumBand
 from ._status import Status as Status
 from ._structure import (
     DERIVED as DERIVED,

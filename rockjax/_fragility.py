@@ -208,15 +208,18 @@ def _newton(lx, y, w):
     return p, ll, jnp.max(jnp.abs(g))
 
 
-#: `_newton` for each row of a weight matrix (the fit and the bootstrap resamples)
-_newton_rows = jax.jit(jax.vmap(_newton, in_axes=(None, None, 0)))
+#: `_newton` for each row of a weight matrix (the fit and the bootstrap resamples) and of
+#: exceedances (the fits of `rockjax.fragility_band`, one per posterior draw)
+_newton_rows = jax.jit(jax.vmap(_newton, in_axes=(None, 0, 0)))
 
 
 def _fit_rows(lx, y, W):
     """(ln θ, β, outcome, ln L) for each row of weights W (n_rows, n_runs) on the runs'
-    ln IM `lx` and exceedances `y`. Outcomes: a fit; separated (β = 0, θ at the middle of
-    the gap in ln IM); none / all exceeded (θ = +inf / 0, β NaN); not converged (NaN)."""
+    ln IM `lx` and exceedances `y` (n_runs,), or one row of exceedances per row of W
+    (n_rows, n_runs). Outcomes: a fit; separated (β = 0, θ at the middle of the gap in
+    ln IM); none / all exceeded (θ = +inf / 0, β NaN); not converged (NaN)."""
     W = np.asarray(W, float)
+    y = np.broadcast_to(np.asarray(y, bool), W.shape)
     has = W > 0
     n_exc, n_surv = (W * y).sum(1), (W * ~y).sum(1)
     hi_surv = np.where(has & ~y, lx, -np.inf).max(1)
@@ -231,9 +234,11 @@ def _fit_rows(lx, y, W):
     p, ll, g = np.full((len(W), 2), np.nan), np.full(len(W), np.nan), np.zeros(len(W))
     if rows.any():  # Newton on every row, those without a finite maximum given a fit's weights
         Wn = np.where(rows[:, None], W, W[np.argmax(rows)])
+        Yn = np.where(rows[:, None], y, y[np.argmax(rows)])
         n = -(-lx.size // _PAD) * _PAD  # runs padded with zero weight: fewer compilations
         pad = (0, n - lx.size)
-        out = _newton_rows(jnp.asarray(np.pad((lx - m) / sd, pad)), jnp.asarray(np.pad(y, pad)),
+        out = _newton_rows(jnp.asarray(np.pad((lx - m) / sd, pad)),
+                           jnp.asarray(np.pad(Yn, ((0, 0), pad))),
                            jnp.asarray(np.pad(Wn, ((0, 0), pad))))
         p[rows], ll[rows], g[rows] = (np.asarray(v)[rows] for v in out)
     converged = g <= _GRAD_TOL * np.maximum(W.sum(1), 1.0)
@@ -247,7 +252,7 @@ def _fit_rows(lx, y, W):
     ln_theta[outcome == _NONE], ln_theta[outcome == _ALL] = np.inf, -np.inf
     beta = np.where(fit, beta, np.where(sep, 0.0, np.nan))
     ll = np.where(fit, ll, np.nan)
-    ll[sep] = [_separated_loglik(lx, y, w, t) for w, t in zip(W[sep], ln_theta[sep])]
+    ll[sep] = [_separated_loglik(lx, yr, w, t) for yr, w, t in zip(y[sep], W[sep], ln_theta[sep])]
     return ln_theta, beta, outcome, ll
 
 

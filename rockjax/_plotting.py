@@ -392,3 +392,30 @@ def plot_joint_fit(traces, fit, *, title=None):
     fig.suptitle((title + "\n" if title else "") + _fit_values(fit), fontsize=10)
     fig.tight_layout()
     return fit_titles(fig)
+
+
+def plot_fragility_band(band, ax=None, n_curves=40):
+    """`rockjax.FragilityBand.plot`: the band, the median, pooled and point-estimate curves
+    and up to `n_curves` of the draws' curves, against the IM."""
+    if ax is None:
+        ax = new_figure(figsize=(6.5, 4.5), layout="constrained").subplots()
+    g = band.grid
+    rows = np.flatnonzero(~np.all(np.isnan(band.curves), axis=1))
+    for k, i in enumerate(rows[:: max(1, rows.size // n_curves)][:n_curves]):
+        ax.plot(g, band.curves[i], color="0.5", lw=0.5, alpha=0.3,
+                label="curves of the draws" if k == 0 else None)
+    ax.fill_between(g, band.band[0], band.band[1], color="C0", alpha=0.25, lw=0,
+                    label=f"{band.confidence:.0%} band over {band.n_draws} draws")
+    ax.plot(g, band.median_curve, color="C0", lw=2, label="median curve")
+    ax.plot(g, band.pooled, color="C1", lw=1.5, ls="--",
+            label="pooled (mean probability, posterior predictive)")
+    if band.point is not None:
+        pt = band.point
+        ax.plot(g, pt.probability(g), color="k", lw=1.2, ls=":",
+                label=f"point estimate: median {pt.median:.4g} {band.im_unit}, β {pt.beta:.3g}")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel(f"{band.im} [{band.im_unit}]" if band.im_unit != "-" else "scale factor")
+    ax.set_ylabel(f"P({band.limit} | {band.im})")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    return ax

@@ -33,7 +33,7 @@ from ._errors import ParameterError
 from ._execution import Execution
 from ._report import model_info, model_line
 from ._response import STATUS
-from ._structure import RockingStructure
+from ._structure import FIELDS, RockingStructure
 from ._sweep import failed_runs
 from .integrators import RK4
 from .models import get_model
@@ -182,8 +182,10 @@ class OverturningSpectrum:
 
 
 def frequency_parameter(structure) -> float:
-    """Housner's frequency parameter $p = \\sqrt{W R_c / I_O}$ [rad/s]."""
-    return math.sqrt(float(structure.W * structure.R_c / structure.I_O))
+    """Housner's frequency parameter $p = \\sqrt{W R_c / I_O}$ [rad/s] (an array for a
+    structure of array fields)."""
+    p = np.sqrt(np.asarray(structure.W * structure.R_c / structure.I_O, float))
+    return float(p) if p.ndim == 0 else p
 
 
 def periods_at(structure, kind, x) -> np.ndarray:
@@ -210,10 +212,12 @@ def _check_options(rtol, n_scan, max_ratio, t_free):
 
 @dataclasses.dataclass(frozen=True)
 class _Runner:
-    """Runs of the spectrum's pulses through `rockjax.simulate_batch`: period i's pulse is
-    record i of `pulses`, on its own sample step `dt[i]` [s] (record_steps="own"), and its
-    run ends at `t_end[i]` [s]; every call is padded to a multiple of `chunk` members, so
-    that every round reuses one compiled program."""
+    """Runs of the spectrum's pulses through `rockjax.simulate_batch`: entry i is period
+    i % P (P = len(pulses)) of structure i // P; period j's pulse is record j of `pulses`,
+    on its own sample step `dt[j]` [s] (record_steps="own"), and its run ends at
+    `t_end[j]` [s]; every call is padded to a multiple of `chunk` members, so that every
+    round reuses one compiled program. `structure`'s fields and `r` are scalars (one
+    structure) or arrays (one value per structure: `rockjax.spectrum_band`'s draws)."""
 
     structure: RockingStructure
     pulses: tuple
@@ -221,22 +225,28 @@ class _Runner:
     chunk: int
     dt: np.ndarray
     t_end: np.ndarray
+    r: object = None
 
     def __call__(self, idx, amp):
-        """(status, n_impacts) of the runs of period `idx` at amplitude `amp` [m/s²]."""
+        """(status, n_impacts) of the runs of entry `idx` at amplitude `amp` [m/s²]."""
         n = len(idx)
         pad = (-n) % self.chunk  # the last run again: no new shapes, no new compilation
-        out = simulate_batch(self.structure, list(self.pulses),
-                             record=np.concatenate([idx, np.repeat(idx[-1:], pad)]),
+        idx = np.concatenate([idx, np.repeat(idx[-1:], pad)])
+        d, P = idx // len(self.pulses), len(self.pulses)
+        s = self.structure
+        if any(np.ndim(getattr(s, f)) for f in FIELDS):
+            s = RockingStructure(**{f: np.asarray(getattr(s, f))[d] if np.ndim(getattr(s, f))
+                                    else getattr(s, f) for f in FIELDS})
+        out = simulate_batch(s, list(self.pulses), record=idx % P,
                              scale=np.concatenate([amp, np.repeat(amp[-1:], pad)]),
-                             **self.options)
+                             r=self.r[d] if np.ndim(self.r) else self.r, **self.options)
         return np.asarray(out.status)[:n], np.asarray(out.n_impacts)[:n]
 
 
 def _runner(structure, model, impact, kind, T, t_free, substeps, devices, n_members, r):
     """The `_Runner` of one spectrum: each period's pulse on a grid of at most
     `rockjax.pulses.MAX_DT` and of omega h <= 0.5 per substep (the springs)."""
-    omega = float(get_model(model, impact).frequency(structure.evaluated()))
+    omega = float(np.max(get_model(model, impact).frequency(structure.evaluated())))
     # a model without springs (housner: omega = 0) has no spring step to resolve
     max_dt = _pulses.MAX_DT if not omega > 0 else min(_pulses.MAX_DT,
                                                       substeps * _OMEGA_H / omega)
@@ -244,13 +254,13 @@ def _runner(structure, model, impact, kind, T, t_free, substeps, devices, n_memb
     dt = np.array([float(g.dt) for g in pulses])
     n_dev = len(jax.local_devices()) if devices is None else max(1, int(devices))
     chunk = n_dev * math.ceil(min(n_members, 4096 * n_dev) / n_dev)
-    options = dict(tail=t_free, model=get_model(model, impact), r=r,
+    options = dict(tail=t_free, model=get_model(model, impact),
                    integrator=RK4(substeps=substeps, max_impacts=_MAX_IMPACTS),
                    summary_only=True, fidelity_warning=False,
                    execution=Execution(chunk_size=chunk, devices=devices, progress=False,
                                        record_steps="own"))
     return _Runner(structure=structure, pulses=pulses, options=options, chunk=chunk, dt=dt,
-                   t_end=T + t_free)
+                   t_end=T + t_free, r=r)
 
 
 _BRACKET, _UP, _DOWN, _DONE, _NONE = range(5)
@@ -269,7 +279,7 @@ class _Search:
     state: np.ndarray
     hi_imp: np.ndarray
     rtol: float
-    cap: tuple  # (lowest, highest) amplitude [m/s²] searched
+    cap: tuple  # (lowest, highest) amplitude [m/s²] searched, each (n,)
 
     @classmethod
     def start(cls, n, rtol, cap):
@@ -296,7 +306,7 @@ class _Search:
         if first.size == 0:
             self.lo[k, i] = pts[-1]
             if np.isnan(self.hi[k, i]):
-                self.state[k, i] = _NONE if pts[-1] >= self.cap[1] else _UP
+                self.state[k, i] = _NONE if pts[-1] >= self.cap[1][i] else _UP
                 return
         else:
             j = int(first[0])
@@ -304,7 +314,7 @@ class _Search:
             if j > 0:
                 self.lo[k, i] = pts[j - 1]
             elif np.isnan(self.lo[k, i]):
-                self.state[k, i] = _NONE if pts[0] <= self.cap[0] else _DOWN
+                self.state[k, i] = _NONE if pts[0] <= self.cap[0][i] else _DOWN
                 return
         self.state[k, i] = _BRACKET
         if self.hi[k, i] / self.lo[k, i] - 1 <= self.rtol:
@@ -421,23 +431,40 @@ def overturning_spectrum(structure, kind, periods, *, model="rigid_body",
         raise ParameterError(f"substeps must be a positive integer, got {substeps!r}",
                              param="substeps")
     get_model(model, impact)  # the model and impact rule checked before any run
-    p = frequency_parameter(structure)
-    gta = float(structure.g * structure.B / structure.H_c)
-    t_free = 20.0 / p if t_free is None else float(t_free)
-    x = 1.0 / (p * T) if kind == "rectangular" else 2 * np.pi / (p * T)
-    scan = gta * np.geomspace(0.25, 4.0 * np.maximum(1.0, x), n_scan, axis=-1)
+    search, runner, n_runs, n_failed, p, gta = _spectra(
+        structure, kind, T, model, impact, r, float(rtol), n_scan, max_ratio, t_free,
+        substeps, devices, progress)
+    return dataclasses.replace(
+        _result(kind, model, T, search, float(p[0]), float(gta[0]), float(rtol), runner,
+                n_runs, n_failed, time.perf_counter() - start),
+        impact=impact, r=None if r is None else float(r))
+
+
+def _spectra(structure, kind, T, model, impact, r, rtol, n_scan, max_ratio, t_free,
+             substeps, devices, progress):
+    """The searches of one structure, or of D structures at once (fields and `r` scalars
+    or (D,) arrays): entry i is period i % P of structure i // P. Returns (the `_Search`,
+    the `_Runner`, runs, failed runs, p (D,) [rad/s], g tan α (D,) [m/s²]); `t_free`
+    None: 20 / the smallest p."""
+    p = np.atleast_1d(frequency_parameter(structure))
+    gta = np.atleast_1d(np.asarray(structure.g * structure.B / structure.H_c, float))
+    D = max(np.size(r) if np.ndim(r) else 1, *(np.size(getattr(structure, f)) for f in FIELDS))
+    p, gta = np.broadcast_to(p, (D,)), np.broadcast_to(gta, (D,))
+    t_free = 20.0 / float(p.min()) if t_free is None else float(t_free)
+    pT = p[:, None] * T[None, :]
+    x = (1.0 / pT if kind == "rectangular" else 2 * np.pi / pT).ravel()
+    g_e = np.repeat(gta, T.size)
+    scan = g_e[:, None] * np.geomspace(0.25, 4.0 * np.maximum(1.0, x), n_scan, axis=-1)
     runner = _runner(structure, model, impact, kind, T, t_free, substeps, devices,
-                     T.size * n_scan, r)
-    search = _Search.start(T.size, float(rtol), (1e-3 * gta, max_ratio * gta))
-    bar = _progress_bar(3 * T.size * n_scan, progress)
+                     x.size * n_scan, r)
+    search = _Search.start(x.size, rtol, (1e-3 * g_e, max_ratio * g_e))
+    bar = _progress_bar(3 * x.size * n_scan, progress)
     try:
         n_runs, n_failed = _search(runner, search, scan, max(4, n_scan // 2), bar)
     finally:
         if bar is not None:
             bar.close()
-    return dataclasses.replace(
-        _result(kind, model, T, search, p, gta, float(rtol), runner, n_runs, n_failed,
-                time.perf_counter() - start), impact=impact, r=None if r is None else float(r))
+    return search, runner, n_runs, n_failed, p, gta
 
 
 def _result(kind, model, T, search, p, gta, rtol, runner, n_runs, n_failed, wall):

@@ -13,17 +13,27 @@ import sys
 import warnings
 
 import rockjax
+from rockjax._draws import NUISANCE
 from rockjax._fragility import parse_im, parse_limit
 from rockjax._plotting import new_figure
 from rockjax._report import status_line
 from rockjax._sweep import status_totals, write_csv
 
 from . import sweep
-from ._common import add_outputs, check_outputs, CLIError, converter, model_info, model_line, save
+from ._common import (
+    add_outputs,
+    check_outputs,
+    CLIError,
+    converter,
+    first_line,
+    model_info,
+    model_line,
+    save,
+)
 
 #: the library parameters that the options of `rockjax fragility` set (errors name them)
 FLAGS = {**sweep.FLAGS, "im": "--im", "limit": "--limit", "n_bootstrap": "--bootstrap",
-         "confidence": "--confidence", "seed": "--seed"}
+         "confidence": "--confidence", "seed": "--seed", "draws": "--draws"}
 #: the keys of the sweep's JSON that `--json` shows under "sweep"
 _SWEEP_KEYS = ("n_runs", "n_records", "n_scales", "status_counts", "wall_time_s", "tail_s",
                "t1", "grid_dt_s", "model", "model_info", "method", "substeps", "records",
@@ -67,11 +77,35 @@ def add_parser(subparsers):
                    type=converter("--confidence", float, lambda c: 0 < c < 1, "lie in (0, 1)"),
                    help="confidence of the band and the intervals (default 0.9)")
     w.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
+    add_draws_arguments(w, "a fragility curve per draw (each refitted, no bootstrap), their "
+                        "median curve, --confidence band and pooled (mean) curve, beside the "
+                        "curve of the structure as given")
     add_outputs(w, "plot the fitted curve, its band and the observed fractions against the IM",
                 out="also write the sweep's CSV, one row per run (the columns of rockjax sweep)",
                 json="print one JSON object and nothing else (no progress bar)")
     w.set_defaults(func=run)
     return w
+
+
+def add_draws_arguments(w, what):
+    """--draws FILE.csv and --draws-ignore NAMES (also `rockjax spectrum`'s)."""
+    w.add_argument("--draws", metavar="FILE.csv",
+                   help=f"posterior draws of the parameters (rockjax fit ... --draws-out): "
+                   f"{what}. CSV: a line '# units: k_f N/m, r -', a header of names (fields "
+                   "of the structure, r, c_f), one row per draw in SI units")
+    w.add_argument("--draws-ignore", type=lambda t: [n.strip() for n in t.split(",") if n.strip()],
+                   metavar="NAMES", default=None,
+                   help="columns of --draws to leave out, a comma list (default: a fit's "
+                   "nuisance parameters, " + ", ".join(NUISANCE) + ")")
+
+
+def read_draws_option(args):
+    """The draws of --draws (errors name --draws)."""
+    ignore = NUISANCE if args.draws_ignore is None else args.draws_ignore
+    try:
+        return rockjax.read_draws(args.draws, ignore=ignore)
+    except (ValueError, OSError) as e:
+        raise CLIError(f"--draws: {first_line(e)}") from None
 
 
 def _valid(parse):
@@ -86,6 +120,10 @@ def run(args):
         raise CLIError(f"--structure: one structure per fragility curve, got "
                        f"{len(args.structure)}")
     check_outputs(args)
+    if args.draws is not None:
+        return _run_band(args)
+    if args.draws_ignore is not None:
+        raise CLIError("--draws-ignore: applies to --draws")
     sw = sweep.read_sweep(args)
     sweep.run_batches(args, sw)
     with warnings.catch_warnings(record=True) as caught:
@@ -111,6 +149,40 @@ def run(args):
                           "plot": args.plot, "csv": args.out, "warnings": sw.warnings + notes}))
     else:
         _print_report(args, sw, fit)
+    return 0
+
+
+def _run_band(args):
+    """--draws: `rockjax.fragility_band` over the draws: text, --json, --plot."""
+    if args.out:
+        raise CLIError("--out: the sweep's CSV is written without --draws only")
+    draws = read_draws_option(args)
+    sw = sweep.read_sweep(args)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        band = rockjax.fragility_band(
+            sw.structures[0], sw.records, sw.scales, draws, im=args.im, limit=args.limit,
+            model=args.model, confidence=args.confidence, labels=sw.rec_labels, tail=sw.tail,
+            t1=sw.t1, r=args.r, impact=args.impact, method=args.method,
+            substeps=args.substeps, progress=False if args.json else None)
+    notes = [str(w.message) for w in caught]
+    if args.plot:
+        fig = new_figure(figsize=(7.5, 5), layout="constrained")
+        band.plot(fig.subplots()).set_title(
+            f"{band.n_draws} draws of {', '.join(band.draws)} x {len(sw.rec_labels)} "
+            f"record(s) x {len(sw.scales)} scale(s), model {args.model}", fontsize=9)
+        save(fig, args.plot)
+    if args.json:
+        print(json.dumps({"fragility_band": band.summary(), "draws_file": args.draws,
+                          "model_info": model_info(args), "plot": args.plot,
+                          "warnings": notes}))
+        return 0
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
+    print(f"records       {', '.join(sw.rec_labels)} (each on its own time step, to its end "
+          f"+ {sw.tail:g} s)\n{band.report()}")
+    if args.plot:
+        print(f"plot written to {args.plot}")
     return 0
 
 

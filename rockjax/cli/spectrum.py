@@ -17,15 +17,18 @@ from ._common import (
     check_outputs,
     CLIError,
     COMMON_FLAGS,
+    converter,
     load_structure,
     model_info,
     number_list,
     save,
+    write_columns,
 )
+from .fragility import add_draws_arguments, read_draws_option
 
 #: the library parameters that the options of `rockjax spectrum` set (errors name them)
 FLAGS = {**COMMON_FLAGS, "periods": "--periods", "rtol": "--rtol", "kind": "--pulse",
-         "structure": "--structure"}
+         "structure": "--structure", "draws": "--draws", "confidence": "--confidence"}
 #: --pulse names and the `rockjax.pulses` kinds
 PULSES = {"rectangular": "rectangular", "sine": "one_sine", "cosine": "one_cosine"}
 
@@ -55,6 +58,11 @@ def add_parser(subparsers):
     q.set_defaults(model="rigid_body")
     q.add_argument("--rtol", type=float, default=1e-3,
                    help="relative width of each final bracket (default 1e-3)")
+    add_draws_arguments(q, "the threshold amplitude per period for every draw, its median "
+                        "and --confidence band, beside the spectrum of the structure as given")
+    q.add_argument("--confidence", default=0.9, metavar="C",
+                   type=converter("--confidence", float, lambda c: 0 < c < 1, "lie in (0, 1)"),
+                   help="confidence of the band over the --draws (default 0.9)")
     add_outputs(q, "write the spectrum plot", out="write the spectrum as CSV (SI units)")
     q.set_defaults(func=run)
     return q
@@ -67,6 +75,10 @@ def run(args):
         raise CLIError(f"--rtol must lie in [1e-8, 0.1], got {args.rtol}")
     T = (np.asarray(args.periods) if args.periods is not None
          else periods_at(s, PULSES[args.pulse], args.ratios))
+    if args.draws is not None:
+        return _run_band(args, s, T)
+    if args.draws_ignore is not None:
+        raise CLIError("--draws-ignore: applies to --draws")
     sp = rockjax.overturning_spectrum(s, PULSES[args.pulse], T, model=args.model,
                                       impact=args.impact, r=args.r, rtol=args.rtol,
                                       progress=None if not args.json else False)
@@ -87,3 +99,34 @@ def run(args):
             print(f"{what} written to {path}")
     return 0
 
+
+
+def _run_band(args, s, T):
+    """--draws: `rockjax.spectrum_band`: text, --json, --plot, --out."""
+    draws = read_draws_option(args)
+    band = rockjax.spectrum_band(
+        s, PULSES[args.pulse], T, draws,
+        model=args.model if args.impact == "paper" else rockjax.get_model(args.model, args.impact),
+        r=args.r, amplitude_rtol=args.rtol, confidence=args.confidence,
+        execution=rockjax.Execution(progress=None if not args.json else False))
+    if args.plot:
+        fig = new_figure(figsize=(6, 4))
+        band.plot(fig.subplots())
+        save(fig, args.plot, bbox_inches="tight")
+    if args.out:
+        write_columns(args.out, {"period": band.periods, "x": band.x,
+                                 "point": band.point.amplitude, "median": band.median,
+                                 "lower": band.band[0], "upper": band.band[1],
+                                 "n_none": band.n_none},
+                      {"period": "s", "x": "-", "point": "m/s2", "median": "m/s2",
+                       "lower": "m/s2", "upper": "m/s2", "n_none": "-"})
+    if args.json:
+        print(json.dumps({"spectrum_band": band.summary(), "draws_file": args.draws,
+                          "model_info": model_info(args), "plot": args.plot,
+                          "csv": args.out}))
+        return 0
+    print(band.report())
+    for what, path in (("plot", args.plot), ("CSV", args.out)):
+        if path:
+            print(f"{what} written to {path}")
+    return 0

@@ -55,3 +55,12 @@ from ._trace import (
     TIME_UNITS as TIME_UNITS,
     TraceError as TraceError,
 )
+from ._shake import (
+    read_shake_table as read_shake_table,
+    ShakeTableRun as ShakeTableRun,
+    synthetic_shake_table as synthetic_shake_table,
+)
+from ._shakefit import (
+    fit_shake_table as fit_shake_table,
+    ShakeTableFitResult as ShakeTableFitResult,
+)

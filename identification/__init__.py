@@ -39,6 +39,15 @@ from ._result import (
     LackOfFitWarning as LackOfFitWarning,
     OutlierWarning as OutlierWarning,
 )
+from ._shake import (
+    read_shake_table as read_shake_table,
+    ShakeTableRun as ShakeTableRun,
+    synthetic_shake_table as synthetic_shake_table,
+)
+from ._shakefit import (
+    fit_shake_table as fit_shake_table,
+    ShakeTableFitResult as ShakeTableFitResult,
+)
 from ._synthetic import (
     Faults as Faults,
     synthetic_trace as synthetic_trace,
@@ -54,13 +63,4 @@ from ._trace import (
     SYNTHETIC_TRACES as SYNTHETIC_TRACES,
     TIME_UNITS as TIME_UNITS,
     TraceError as TraceError,
-)
-from ._shake import (
-    read_shake_table as read_shake_table,
-    ShakeTableRun as ShakeTableRun,
-    synthetic_shake_table as synthetic_shake_table,
-)
-from ._shakefit import (
-    fit_shake_table as fit_shake_table,
-    ShakeTableFitResult as ShakeTableFitResult,
 )

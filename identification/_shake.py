@@ -416,7 +416,7 @@ def synthetic_shake_table(structure=None, record=None, scale: float = 1.0, *,
                           duration: float | None = None, dt: float | None = None,
                           offsets: dict | None = None, seed: int = 0) -> ShakeTableRun:
     """A SYNTHETIC shake-table run (clearly labelled so in its `source`): `record` (a
-    `rockjax.Record`, default `rockjax.datasets.el_centro()`) times `scale` drives the
+    `rockjax.Record`) times `scale` drives the
     structure (`model`, `truth`: k_f, r, c_f), the response channels (`channels` of u,
     theta, uplift) sampled every `dt` (default the record's) for `duration` s (default the
     record's) on a clock that lags the table's by `clock_offset` [s] (the fit's t0 is
@@ -426,12 +426,15 @@ def synthetic_shake_table(structure=None, record=None, scale: float = 1.0, *,
     (`ShakeTableRun.write_csv`); the arrays are SI.
 
     ```python
-    run = identification.synthetic_shake_table(rockjax.mcmanus_column(),
-                                               rockjax.datasets.el_centro(), 0.5)
+    record = rockjax.datasets.synthetic_ground_motion(duration=5.0, dt=0.01, pga=3.0)
+    run = identification.synthetic_shake_table(rockjax.mcmanus_column(), record, 1.0)
     ```
     """
     s = rockjax.mcmanus_column() if structure is None else structure
-    rec = rockjax.datasets.el_centro() if record is None else record
+    if not isinstance(record, rockjax.Record):
+        raise ValueError("synthetic_shake_table: record must be a rockjax.Record (read one "
+                         "with rockjax.read_record), got " + type(record).__name__)
+    rec = record
     truth = dict(truth or {})
     s = s.replace(k_f=float(truth.get("k_f", float(s.k_f))))
     r = float(truth.get("r", float(s.restitution)))

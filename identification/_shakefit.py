@@ -33,6 +33,7 @@ import dataclasses
 import math
 import warnings
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -116,15 +117,27 @@ class ShakeTableFitResult(FitResult):
         Gaussian residuals with each channel's noise level fixed at the fit's estimate
         (`noise`), $\\log L(z) = -\\tfrac12\\sum_c \\|r_c(z)\\|^2 / s_c^2$ with $r_c$ the
         fit's residuals (`TraceModel.residuals`) and $s_c$ their RMS at the optimum.
-        Default priors flat (`priors`: name -> `Prior` or text)."""
+        Its gradient (`jax.grad`) is $-J^T W r$ with the forward-mode Jacobian
+        (`TraceModel.res_jac`: the simulation is not reverse-differentiable). Default
+        priors flat (`priors`: name -> `Prior` or text)."""
         model, mask, s_res, transform = self._posterior
         z0 = jnp.asarray(np.array([self._z0[p] for p in self.names]))
         w = jnp.asarray(np.repeat(1.0 / np.asarray(s_res) ** 2, int(mask.size)))
         maskj = jnp.asarray(mask)
 
+        @jax.custom_vjp
         def log_likelihood(z):
             r = model.residuals(z, maskj)
             return -0.5 * jnp.sum(w * r**2)
+
+        def fwd(z):  # the simulation differentiates in forward mode: J^T (w r) from res_jac
+            r, J = model.res_jac(z, maskj)
+            return -0.5 * jnp.sum(w * r**2), -(J.T @ (w * r))
+
+        def bwd(g, ct):
+            return (ct * g,)
+
+        log_likelihood.defvjp(fwd, bwd)
 
         def to_physical(z):
             v = model.decode(z)

@@ -13,17 +13,18 @@ import rockjax
 from rockjax._cache import enable_compile_cache
 from rockjax._config import stack_versions
 
-from . import demo, fit, fragility, pushover, simulate, spectrum, sweep
+from . import demo, fit, fit_table, fragility, pushover, simulate, spectrum, sweep
 from ._common import CLIError, COMMON_FLAGS, error_text, EXIT_USAGE, Parser
 
 #: the sub-commands, in the order `rockjax --help` lists them
-COMMANDS = (demo, pushover, simulate, fit, sweep, fragility, spectrum)
+COMMANDS = (demo, pushover, simulate, fit, fit_table, sweep, fragility, spectrum)
 
 
 def flags(command):
     """The library parameter -> option map of a command (its module's `FLAGS`, else the
     options most commands share)."""
-    module = next((c for c in COMMANDS if c.__name__.rsplit(".", 1)[-1] == command), None)
+    module = next((c for c in COMMANDS
+                   if c.__name__.rsplit(".", 1)[-1] == command.replace("-", "_")), None)
     return getattr(module, "FLAGS", COMMON_FLAGS)
 
 

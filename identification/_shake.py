@@ -425,10 +425,9 @@ def synthetic_shake_table(structure=None, record=None, scale: float = 1.0, *,
     `channel_units` ({"u": "mm"}) are the units the channels are written in
     (`ShakeTableRun.write_csv`); the arrays are SI.
 
-    ```python
-    record = rockjax.datasets.synthetic_ground_motion(duration=5.0, dt=0.01, pga=3.0)
-    run = identification.synthetic_shake_table(rockjax.mcmanus_column(), record, 1.0)
-    ```
+    For example (benchmarks/shake_table.py, tests/test_shake_table.py):
+    `synthetic_shake_table(rockjax.mcmanus_column(), record, 1.5, model="rigid_body",
+    truth={"k_f": 715e3, "r": 0.8}, channel_units={"u": "mm"}, seed=3)`.
     """
     s = rockjax.mcmanus_column() if structure is None else structure
     if not isinstance(record, rockjax.Record):

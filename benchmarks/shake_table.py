@@ -57,7 +57,7 @@ def make_run(name, scale, model, seed, folder):
         rockjax.mcmanus_column(), rec, scale, model=model, truth=truth, noise=NOISE,
         clock_offset=CLOCK, channels=("u", "theta"), channel_units={"u": "mm"},
         duration=DURATION, dt=0.01, seed=seed)
-    base = folder / f"{name.split('.')[0]}_{scale:g}_{seed}"
+    base = folder / f"{name.split('.')[0]}_x{scale:g}_seed{seed}".replace(".", "p")
     if np.isclose(run.table.dt, run.response.dt):
         path = run.write_csv(base.with_suffix(".csv"))
         return identification.read_shake_table(path), truth, "one file"

@@ -72,7 +72,8 @@ class ShakeTableRun:
     - `table_kind`: `"acceleration"` or `"displacement"` (what the file held);
       `table_units`: its unit in the file; `table_column`: its column (or file).
     - `source`: where it came from; `notes`: what was read and how it is handled
-      (different rates, a response longer than the record, ...).
+      (different rates, a response longer than the record, ...); `description`: the
+      leading `#` comment lines of the (response) file, such as a SYNTHETIC label.
     """
 
     table: rockjax.Record
@@ -83,6 +84,7 @@ class ShakeTableRun:
     table_column: str = ""
     source: str = ""
     notes: tuple = ()
+    description: str = ""  # the leading '#' comment lines of the response file
 
     def __post_init__(self):
         if not isinstance(self.table, rockjax.Record):
@@ -226,6 +228,23 @@ def _classify(cell: str):
     return None, None
 
 
+def _comments(path) -> str:
+    """The leading '#' comment lines of a text file, without the '#'."""
+    try:
+        text, _ = rockjax.datasets.read_text(path)
+    except (OSError, ValueError, TypeError):
+        return ""
+    out = []
+    for line in text.splitlines():
+        s = line.strip()
+        if not s:
+            continue
+        if not s.startswith("#"):
+            break
+        out.append(s.lstrip("#").strip())
+    return "\n".join(out)
+
+
 def _read_one(path, units, check_plausible) -> ShakeTableRun:
     """A one-file run: t, a table column, response columns."""
     name = str(path)
@@ -293,7 +312,8 @@ def _read_one(path, units, check_plausible) -> ShakeTableRun:
                          units_source=origin)
     run = ShakeTableRun(table=rec, response=trace, table_start=float(t[0]),
                         table_kind="acceleration" if tkind == "accel" else "displacement",
-                        table_units=tunit, table_column=cells[ti], source=name)
+                        table_units=tunit, table_column=cells[ti], source=name,
+                        description=_comments(path))
     return dataclasses.replace(run, notes=tuple(notes) + tuple(clock_notes(run)))
 
 
@@ -370,7 +390,9 @@ def read_shake_table(path=None, *, table=None, response=None, units=None,
     src = f"table {rec.source or 'Record'}; response {tr.source or 'DecayTrace'}"
     run = ShakeTableRun(table=rec, response=tr, table_start=float(table_start),
                         table_kind="acceleration", table_units=rec.units_in_file,
-                        table_column=rec.source, source=src)
+                        table_column=rec.source, source=src,
+                        description="" if isinstance(response, DecayTrace)
+                        else _comments(response))
     run = dataclasses.replace(run, notes=tuple(notes) + tuple(clock_notes(run)))
     check_saturation(run.response)
     return run
@@ -470,4 +492,5 @@ def synthetic_shake_table(structure=None, record=None, scale: float = 1.0, *,
                            source=f"{rec.source} x {scale:g}", units_in_file="m/s2",
                            units_source="given")
     return ShakeTableRun(table=rec_s, response=tr, table_start=0.0, table_kind="acceleration",
-                         table_units="m/s2", table_column="ag", source=label)
+                         table_units="m/s2", table_column="ag", source=label,
+                         description=label)

@@ -109,6 +109,7 @@ def test_read_one_file_round_trip(tmp_path, run):
     np.testing.assert_allclose(back.table.accel, run.table.accel[:back.table.npts],
                                rtol=1e-8, atol=1e-9)
     assert back.table_start == 0.0 and back.table_kind == "acceleration"
+    assert "SYNTHETIC" in back.description  # the label travels in the file's comment
 
 
 def test_read_one_file_table_in_g_and_displacement(tmp_path):

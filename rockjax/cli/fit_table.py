@@ -129,7 +129,8 @@ def _plot(path, runs, fit):
         ax = axes[0, j]
         ax.plot(t0 + run.table.time, run.table.accel, lw=0.7, color="0.3")
         ax.set_ylabel("table acc. [m/s²]")
-        ax.set_title(run.response.source[:70] or f"run {j}", fontsize=8)
+        title = (run.description.splitlines() or [""])[0] or run.response.source
+        ax.set_title(title[:110] or f"run {j}", fontsize=7)
         for k, ch in enumerate(chans, 1):
             ax = axes[k, j]
             ax.plot(run.response.t, getattr(run.response, ch), ".", ms=1.5, color="0.6",

@@ -19,11 +19,10 @@ from ._common import (
     COMMON_FLAGS,
     converter,
     load_structure,
-    model_info,
     model_line,
     positive_float,
 )
-from .fit import _channel_map, _CONTACTS
+from .fit import _channel_map, _CONTACTS, _fit_model_info
 
 FLAGS = {**COMMON_FLAGS, "structure": "--structure", "units": "--units",
          "table_units": "--table-units", "table_start": "--table-start",
@@ -152,6 +151,10 @@ def run(args):
     runs = _read_runs(args, identification)
     if args.r is not None and not 0.0 < args.r < 1.0:
         raise CLIError(f"--r must lie strictly inside (0, 1) for a fit, got {args.r}")
+    try:
+        fm = identification.resolve_model(args.model, args.impact, args.contact)
+    except ValueError as e:
+        raise CLIError(f"--contact: {e}") from None
     initial = {k: float(v) for k, v in (("r", args.r), ("c_f", args.c_f)) if v is not None}
     schedule = None if args.starts is None else identification.Schedule(starts=args.starts)
     shown = (identification.IdentifiabilityWarning, identification.ConvergenceWarning)
@@ -167,7 +170,7 @@ def run(args):
     for w in caught:
         if not issubclass(w.category, shown):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    info = model_info(args)
+    info = _fit_model_info(args, s, fit, fm)  # r (and c_f) fitted or held, and their starts
     if args.plot:
         _plot(args.plot, runs, fit)
     if args.json:

@@ -188,11 +188,11 @@ def _as_run(run) -> ShakeTableRun:
 
 
 def setup_run(run: ShakeTableRun, structure, params, settings: Settings,
-              noise_weights: dict | None = None) -> Problem:
+              noise_weights: dict | None = None, by_noise: bool = True) -> Problem:
     """The `Problem` of a shake-table run (`fit_shake_table`'s arguments checked):
     the table record as the excitation, t0 starting at the table start as read,
     channel weights from each channel's noise (`noise_weights`: sigma per channel;
-    default estimated from the data)."""
+    default estimated from the data; `by_noise` False: the settings' weights)."""
     st = settings
     run = _as_run(run)
     structure = check_structure(structure)
@@ -214,9 +214,8 @@ def setup_run(run: ShakeTableRun, structure, params, settings: Settings,
     floor = {c: max(sig[c], 1e-6 * amp[c]) for c in fitted}
     level = floor[primary] / amp[primary]  # the primary channel's noise in residual units
     w = {c: level * amp[c] / floor[c] for c in fitted}
-    user_w = st.uplift_weight != 1.0 or st.theta_weight != 1.0
-    theta_w = st.theta_weight if user_w else w.get("theta", 1.0)
-    uplift_w = st.uplift_weight if user_w else w.get("uplift", 1.0)
+    theta_w = w.get("theta", 1.0) if by_noise else st.theta_weight
+    uplift_w = w.get("uplift", 1.0) if by_noise else st.uplift_weight
     if primary == "theta":
         theta_w = 1.0
     release = Release(time=run.table_start, estimate=run.table_start, index=0, level=0.0,
@@ -274,7 +273,7 @@ def _fit_problem(problem, optimizer, z_start=None):
 def fit_run(run: ShakeTableRun, structure, params, settings: Settings, optimizer=None,
             weights_given: bool = False) -> ShakeTableFitResult:
     """The fit of one run (`fit_shake_table`'s arguments; `settings` the keyword ones)."""
-    problem = setup_run(run, structure, params, settings)
+    problem = setup_run(run, structure, params, settings, by_noise=not weights_given)
     transform, model, opt, srun, best = _fit_problem(problem, optimizer)
     noise = channel_noise(problem, best, srun.keep)
     if not weights_given and len(problem.channels) > 1:
@@ -379,7 +378,8 @@ def fit_shake_table(runs, structure=None, params=None, *, model="simplified",
                            weights is not None)
         from ._joint import fit_joint_problems
 
-        problems = [setup_run(r, structure, params, settings) for r in runs]
+        problems = [setup_run(r, structure, params, settings, by_noise=weights is None)
+                    for r in runs]
         n_acc = max(pb.accel.size for pb in problems)
         problems = [dataclasses.replace(pb, accel=np.pad(pb.accel, (0, n_acc - pb.accel.size)))
                     for pb in problems]

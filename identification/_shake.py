@@ -34,13 +34,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import pathlib
+import re
 
 import numpy as np
 
 import rockjax
-from rockjax._records import record_format, RECORD_UNITS
 
 from . import _anomalies
 from ._trace import DecayTrace, read_trace, TraceError
@@ -143,7 +142,7 @@ class ShakeTableRun:
         unit_of = {c: tr.units.get(c, "rad" if c == "theta" else "m") for c in chans}
         kind = {"u": "length", "uplift": "length", "theta": "angle"}
         cols = {c: np.asarray(getattr(tr, c)) / _U.factor(unit_of[c], kind[c]) for c in chans}
-        tu = self.table_units if self.table_units in RECORD_UNITS else "m/s2"
+        tu = self.table_units if self.table_units in _U.names("acceleration") else "m/s2"
         acc = np.asarray(self.table.accel) / _U.factor(tu, "acceleration")
         fmt = f"%.{digits}g"
         head = [f"# {line}" for line in (self.source or "shake-table run").splitlines()]
@@ -317,20 +316,39 @@ def _read_one(path, units, check_plausible) -> ShakeTableRun:
     return dataclasses.replace(run, notes=tuple(notes) + tuple(clock_notes(run)))
 
 
-def _table_start_of(path) -> float | None:
-    """The first time stamp [s] of a two-column record file (None for other layouts)."""
-    try:
-        fmt = record_format(path)
-    except (ValueError, AttributeError):
-        return None
-    if fmt != "two_column":
-        return None
-    from rockjax._records import _file_lines, _read_columns, _time_unit_from_header
+_TIME_TITLE = re.compile(r"(?<![a-z0-9_])(?:t|time)\s*(?:_([a-zµμ]+)\b|[\[(]\s*([a-zµμ]+)\s*[\])])",
+                         re.IGNORECASE)
 
-    lines, _ = _file_lines(os.fspath(path))
-    data, _, header = _read_columns(lines, os.fspath(path), 2)
-    unit = _time_unit_from_header("\n".join(header).strip(), os.fspath(path))
-    return float(_U.to_si(np.asarray(data[:1, 0]), unit, "time")[0])
+
+def _table_start_of(path) -> float | None:
+    """The first time stamp [s] of a two-column record file (a first data line of two
+    numbers; its unit from a time title such as `t_ms` or `Time[s]`, else s), None for
+    other layouts (AT2, one column, the databases' formats)."""
+    try:
+        text, _ = rockjax.datasets.read_text(path)
+    except (OSError, ValueError, TypeError):
+        return None
+    header = []
+    for line in text.splitlines():
+        cells = [c for c in re.split(r"[\s,;]+", line.strip()) if c]
+        if not cells:
+            continue
+        try:
+            values = [float(c.replace("D", "E").replace("d", "e")) for c in cells]
+        except ValueError:
+            header.append(line)
+            if len(header) > 50:
+                return None
+            continue
+        if len(values) != 2 or any("NPTS" in h.upper() for h in header):
+            return None
+        m = _TIME_TITLE.search("\n".join(header))
+        unit = (m.group(1) or m.group(2)) if m else "s"
+        try:
+            return float(_U.to_si(np.asarray([values[0]]), unit, "time")[0])
+        except (ValueError, KeyError):
+            return values[0]
+    return None
 
 
 def read_shake_table(path=None, *, table=None, response=None, units=None,

@@ -8,6 +8,9 @@ c_f included, and a lack-of-fit check of the residuals; docs/identification.md);
 synthetic traces in `data/` (`synthetic_trace_path`, `synthetic_truth`) are labelled
 synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits several traces
 of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
+Shake-table runs (a table record and the response, `read_shake_table`) are fitted by the
+same machinery with the table as the excitation (`fit_shake_table`: k_f, r, c_f, the
+clock offset, each channel's sensor zero and noise).
 """
 
 from ._anomalies import split_releases as split_releases

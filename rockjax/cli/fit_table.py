@@ -8,6 +8,7 @@ file and its table record on their own clocks), one run or several jointly.
 from __future__ import annotations
 
 import json
+import textwrap
 import warnings
 
 from ._common import (
@@ -129,7 +130,7 @@ def _plot(path, runs, fit):
         ax.plot(t0 + run.table.time, run.table.accel, lw=0.7, color="0.3")
         ax.set_ylabel("table acc. [m/s²]")
         title = (run.description.splitlines() or [""])[0] or run.response.source
-        ax.set_title(title[:110] or f"run {j}", fontsize=7)
+        ax.set_title("\n".join(textwrap.wrap(title[:200], 95)) or f"run {j}", fontsize=7)
         for k, ch in enumerate(chans, 1):
             ax = axes[k, j]
             ax.plot(run.response.t, getattr(run.response, ch), ".", ms=1.5, color="0.6",

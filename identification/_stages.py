@@ -192,7 +192,7 @@ def run_horizon(problem: Problem, model: TraceModel, opt, run: Run, stage: int, 
     # start of a record does not inform)
     held = getattr(problem, "hold_first", ()) if first else ()
     free = jnp.asarray([0.0 if ((p == "k_f" and freeze_kf) or (p in LINEAR and first)
-                                or p in held) else 1.0 for p in params])
+                                or p.split("[")[0] in held) else 1.0 for p in params])
     if is_solver(opt):
         _solve_horizon(problem, model, opt, run, frac, mask, free, progress)
         return

@@ -140,6 +140,19 @@ def summarise(rows) -> str:
             tot.append(f"of the {len(bad)} fits outside the tolerance, {flagged} are flagged "
                        "by the lack-of-fit check or as unconverged")
         lines += ["", f"All {len(rs)} fits: " + "; ".join(tot) + ".", ""]
+    lines += [
+        "Notes:", "",
+        "- The runs are written to disk and read back: IELC180 (dt 10 ms) as one file "
+        "(`t,ag_m/s2,u_mm,theta_rad`), Corralitos (dt 5 ms) as a response file sampled "
+        "every 10 ms and a two-column table file, each on its own clock.",
+        "- The misses are wrong minima of the misfit on strongly rocked runs, not "
+        "standard errors that are too small: the fits outside the tolerance are flagged by "
+        "the lack-of-fit check (their residuals are not noise) or as unconverged. Fit such "
+        "a run from another start, or jointly with other runs.",
+        "- s/fit: seconds per fit after the first of its shape (the first compiles, about "
+        "30-70 s), measured on the shared 2-core development machine with other jobs.",
+        "- `shake_table.png`: `rockjax fit-table` of one of these runs (rigid body, "
+        "1.5 x Corralitos, seed 0, two files) with `--plot`.", ""]
     return "\n".join(lines) + "\n"
 
 

@@ -10,6 +10,9 @@ synthetic everywhere. `fit_decay([trace_1, trace_2, ...], structure)` fits sever
 of one structure at once: k_f and r shared, u0 and t0 of each trace (`JointFitResult`).
 `read_outcomes` and `fit_outcomes` fit a specimen to pass/fail runs (toppled or stood under
 pulses) with rockjax's overturning spectra (`OutcomeFit`; docs/outcomes.md).
+Shake-table runs (a table record and the response, `read_shake_table`) are fitted by the
+same machinery with the table as the excitation (`fit_shake_table`: k_f, r, c_f, the
+clock offset, each channel's sensor zero and noise).
 """
 
 from ._anomalies import split_releases as split_releases
@@ -53,6 +56,15 @@ from ._result import (
     IdentifiabilityWarning as IdentifiabilityWarning,
     LackOfFitWarning as LackOfFitWarning,
     OutlierWarning as OutlierWarning,
+)
+from ._shake import (
+    read_shake_table as read_shake_table,
+    ShakeTableRun as ShakeTableRun,
+    synthetic_shake_table as synthetic_shake_table,
+)
+from ._shakefit import (
+    fit_shake_table as fit_shake_table,
+    ShakeTableFitResult as ShakeTableFitResult,
 )
 from ._synthetic import (
     Faults as Faults,

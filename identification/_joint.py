@@ -196,12 +196,24 @@ def _joint_problem(traces, structure, params, settings: Settings) -> _JointProbl
     if len({pb.params for pb in problems}) > 1:  # the offset pinned in some traces only
         settings = dataclasses.replace(settings, offset=True)
         problems = tuple(setup(tr, structure, params, settings) for tr in traces)
+    return joint_of(problems)
+
+
+def joint_of(problems) -> _JointProblem:
+    """The joint problem of the checked problems of each trace (or shake-table run:
+    `identification._shakefit`): the same channels in each, k_f, r, c_f shared."""
+    problems = tuple(problems)
     for i, pb in enumerate(problems[1:], 1):
         if pb.fits_uplift != problems[0].fits_uplift:
             has = "has" if pb.fits_uplift else "has no"
             raise ValueError(
                 f"trace[{i}] {has} uplift channel, unlike trace[0]: a joint fit needs the "
                 "same channels in every trace (drop the uplift, or set weights={'uplift': 0})")
+    for i, pb in enumerate(problems[1:], 1):
+        if pb.channels != problems[0].channels or pb.params != problems[0].params:
+            raise ValueError(f"trace[{i}] has the channels {pb.channels} and the parameters "
+                             f"{pb.params}, trace[0] {problems[0].channels} and "
+                             f"{problems[0].params}: a joint fit needs the same in each")
     local = problems[0].params
     shared = [p for p in local if p in SHARED]
     own = [p for p in local if p in OWN]
@@ -219,9 +231,11 @@ def _padded(pb, n: int):
         return pb
     dt = float(np.median(np.diff(pb.t)))
     t = np.concatenate([pb.t, pb.t[-1] + dt * np.arange(1, k + 1)])
-    up = None if pb.up_meas is None else np.pad(pb.up_meas, (0, k), mode="edge")
-    return dataclasses.replace(pb, t=t, u_meas=np.pad(pb.u_meas, (0, k), mode="edge"),
-                               up_meas=up)
+    def pad(x):
+        return None if x is None else np.pad(x, (0, k), mode="edge")
+
+    return dataclasses.replace(pb, t=t, u_meas=pad(pb.u_meas), up_meas=pad(pb.up_meas),
+                               th_meas=pad(pb.th_meas))
 
 
 # ---------------------------------------------------------------------- the model
@@ -282,6 +296,15 @@ def fit_joint(traces, structure, params, settings: Settings, optimizer=None) -> 
     traces = _check_traces(traces)
     structure = _check_structures(structure, len(traces))
     jp = _joint_problem(traces, structure, params, settings)
+    return _fit(jp, optimizer, [tr.source or f"trace[{i}]" for i, tr in enumerate(traces)])
+
+
+def fit_joint_problems(problems, optimizer, sources) -> JointFitResult:
+    """The joint fit of checked problems (of shake-table runs, `fit_shake_table`)."""
+    return _fit(joint_of(problems), optimizer, sources)
+
+
+def _fit(jp: _JointProblem, optimizer, sources) -> JointFitResult:
     transforms = [Transform.of(pb) for pb in jp.problems]
     model = _JointModel.build(jp)
     opt = optimizer_of(optimizer)
@@ -290,8 +313,7 @@ def fit_joint(traces, structure, params, settings: Settings, optimizer=None) -> 
     best = best_start(jp, model, opt, run)
     responses = _responses(jp, model, transforms, best.z)
     unc = _uncertainty(jp, transforms, best)
-    return _result(jp, transforms, run, best, responses, unc,
-                   [tr.source or f"trace[{i}]" for i, tr in enumerate(traces)])
+    return _result(jp, transforms, run, best, responses, unc, sources)
 
 
 def _starting_points(jp: _JointProblem, transforms) -> np.ndarray:
@@ -357,7 +379,7 @@ def _uncertainty(jp: _JointProblem, transforms, best):
 def _trace_dict(jp: _JointProblem, i: int, source: str, values: dict, se: dict, response,
                 sigma):
     pb = jp.problems[i]
-    e = np.asarray(response.u) - pb.u_meas
+    e = np.asarray(getattr(response, pb.channels[0])) - pb.measured(pb.channels[0])
     rms = float(np.sqrt(np.mean(e**2)))
     lack = _lack.lack_of_fit(e, rms, pb.scale, pb.fit_model.describe(),
                              _models.models_above(pb.fit_model, pb.params), t=pb.t,

@@ -98,6 +98,11 @@ class Problem:
     theta_weight: float = 1.0
     theta_scale: float = 1.0  # max |theta| [rad]: the unit of the rotation's residuals
     primary: str = "u"  # the channel the release is found in, and that rms describes
+    # the base (table) motion of a shake-table run, None for a decay: the ground
+    # acceleration [m/s^2] sampled every `accel_dt` [s] from model time 0, which lies at
+    # t0 on the trace's clock (`identification._shake`)
+    accel: np.ndarray | None = None
+    accel_dt: float | None = None
 
     @property
     def fits_theta(self) -> bool:

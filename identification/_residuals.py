@@ -60,6 +60,8 @@ class TraceModel(eqx.Module):
     th: jax.Array | None = None  # measured rotation [rad], None when not fitted
     theta_scale: jax.Array | float = 1.0  # its amplitude [rad]
     theta_weight: jax.Array | float = 1.0
+    accel: jax.Array | None = None  # the table's ground acceleration [m/s^2], None: a decay
+    accel_dt: jax.Array | None = None  # its sample step [s]
     params: tuple = eqx.field(static=True, default=())
     dashpots: bool = eqx.field(static=True, default=False)  # a dashpot coefficient (c_f)
     impact: str = eqx.field(static=True, default="paper")
@@ -84,6 +86,8 @@ class TraceModel(eqx.Module):
             uplift_weight=arr(float(pb.uplift_weight)), model=_model_instance(pb),
             params=pb.params, dashpots=pb.fit_model.has_dashpots, impact=pb.impact,
             rtol=float(pb.rtol), atol=float(pb.atol),
+            accel=None if pb.accel is None else arr(np.asarray(pb.accel, float)),
+            accel_dt=None if pb.accel is None else arr(float(pb.accel_dt)),
         )
 
     def decode(self, z) -> dict:
@@ -93,7 +97,10 @@ class TraceModel(eqx.Module):
 
     def respond(self, z, t_end=None):
         """The model on the trace times: held at u0 before the release at t0, then
-        `rockjax.simulate` of the release at rest (model time t - t0).
+        `rockjax.simulate` of the release at rest (model time t - t0). With a base motion
+        (`accel`: a shake-table run), the excitation is the `rockjax.GroundMotion` of the
+        table record from the state (u0, 0) at model time 0, the record's first sample,
+        which lies at t0 on the trace's clock (zero ground motion after the record ends).
 
         The samples before the release get model times 0, eps, 2 eps, ... (eps ~ 1e-9 of
         a step / n: strictly increasing, as `simulate` needs, and as good as 0: the state
@@ -111,8 +118,12 @@ class TraceModel(eqx.Module):
         ts = jnp.maximum(self.t - v["t0"], self.eps * k)
         if t_end is not None:
             ts = jnp.minimum(ts, jnp.maximum(t_end - v["t0"], 0.0) + self.eps_end * k)
+        if self.accel is None:
+            excitation = rockjax.FreeVibration(v["u0"])
+        else:
+            excitation = rockjax.GroundMotion(dt=self.accel_dt, accel=self.accel, u0=v["u0"])
         return rockjax.simulate(
-            s, rockjax.FreeVibration(v["u0"]), ts[-1], ts=ts, r=v["r"], model=model,
+            s, excitation, ts[-1], ts=ts, r=v["r"], model=model,
             impact=self.impact, rtol=self.rtol, atol=self.atol, adjoint="forward",
         )
 

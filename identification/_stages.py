@@ -188,8 +188,11 @@ def run_horizon(problem: Problem, model: TraceModel, opt, run: Run, stage: int, 
     # free there, they trade with the phase and the decay while k_f is held, and a wrong
     # start (spikes) can end in another minimum. They are freed with k_f.
     first = stage == 0 and len(horizons) > 1
-    free = jnp.asarray([0.0 if ((p == "k_f" and freeze_kf) or (p in LINEAR and first))
-                        else 1.0 for p in params])
+    # A problem may hold more on the first horizon (a shake-table run: t0, which the quiet
+    # start of a record does not inform)
+    held = getattr(problem, "hold_first", ()) if first else ()
+    free = jnp.asarray([0.0 if ((p == "k_f" and freeze_kf) or (p in LINEAR and first)
+                                or p.split("[")[0] in held) else 1.0 for p in params])
     if is_solver(opt):
         _solve_horizon(problem, model, opt, run, frac, mask, free, progress)
         return

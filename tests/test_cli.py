@@ -204,6 +204,7 @@ def test_in_process_main_leaves_the_jax_configuration_alone(monkeypatch, capsys)
 # ------------------------------------------- library errors name the command's option
 #: the least arguments each command parses with
 _MINIMAL = {"demo": [], "pushover": [], "simulate": [], "fit": ["t.csv"],
+            "fit-table": ["run.csv"],
             "sweep": ["--record", "r.txt"], "fragility": ["--record", "r.txt", "--scales", "1"],
             "spectrum": ["--pulse", "sine", "--ratios", "1"], "fit-outcomes": ["t.csv"]}
 
@@ -217,7 +218,8 @@ def _raising(param, **kw):
 def _mapped():
     from rockjax.cli import COMMANDS, flags
     for module in COMMANDS:
-        command = getattr(module, "COMMAND", module.__name__.rsplit(".", 1)[-1])
+        command = getattr(module, "COMMAND",
+                          module.__name__.rsplit(".", 1)[-1].replace("_", "-"))
         for param, flag in flags(command).items():
             yield module, command, param, flag
 

@@ -13,18 +13,18 @@ import rockjax
 from rockjax._cache import enable_compile_cache
 from rockjax._config import stack_versions
 
-from . import demo, fit, fragility, outcomes, pushover, simulate, spectrum, sweep
+from . import demo, fit, fit_table, fragility, outcomes, pushover, simulate, spectrum, sweep
 from ._common import CLIError, COMMON_FLAGS, error_text, EXIT_USAGE, Parser
 
 #: the sub-commands, in the order `rockjax --help` lists them
-COMMANDS = (demo, pushover, simulate, fit, outcomes, sweep, fragility, spectrum)
+COMMANDS = (demo, pushover, simulate, fit, fit_table, outcomes, sweep, fragility, spectrum)
 
 
 def flags(command):
     """The library parameter -> option map of a command (its module's `FLAGS`, else the
     options most commands share)."""
-    module = next((c for c in COMMANDS if getattr(c, "COMMAND", c.__name__.rsplit(".", 1)[-1])
-                   == command), None)
+    module = next((c for c in COMMANDS if getattr(
+        c, "COMMAND", c.__name__.rsplit(".", 1)[-1].replace("_", "-")) == command), None)
     return getattr(module, "FLAGS", COMMON_FLAGS)
 
 

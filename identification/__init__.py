@@ -30,6 +30,11 @@ from ._models import (
 )
 from ._optim import levenberg_marquardt as levenberg_marquardt
 from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
+from ._posterior import (
+    Posterior as Posterior,
+    PosteriorWarning as PosteriorWarning,
+    sample_posterior as sample_posterior,
+)
 from ._problem import NUISANCE as NUISANCE, PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
 from ._release import detect_release as detect_release, Release as Release
 from ._result import (

@@ -30,6 +30,7 @@ import sys
 import time
 import warnings
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -41,6 +42,8 @@ RHAT_MAX = 1.01
 ESS_MIN = 400
 """The smallest bulk ESS of a posterior that is `ok` (Vehtari et al. 2021: 100 per chain,
 4 chains); with fewer draws in all, `ess_threshold` lowers it."""
+TARGET_ACCEPTANCE = 0.8
+"""The mean acceptance rate the step size is tuned to (dual averaging, during warmup)."""
 CHUNK = 25
 """Transitions per compiled call (warmup and draws: the progress bar's steps); the warmup
 and the draws are rounded up to whole chunks (the extra draws are dropped)."""
@@ -112,8 +115,6 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
     post.interval("k_f")
     ```
     """
-    import blackjax
-
     from ._residuals import _checks_as_nan
 
     _check_counts(chains, draws, warmup)
@@ -123,9 +124,6 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
     cov0 = np.eye(d) if pb.cov0 is None else np.asarray(pb.cov0, float)
     L = _cholesky(cov0)
     Lj = jnp.asarray(L)
-
-    def logdensity(w):
-        return pb.log_density(z0 + Lj @ w)
 
     key = jax.random.key(seed)
     k_init, k_warm, k_draw = jax.random.split(key, 3)
@@ -139,8 +137,8 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
     show = progress if progress is not None else sys.stderr.isatty()
     t_start = time.perf_counter()
     with _checks_as_nan():
-        w_draws, info, step_size, t_warm = _run(blackjax, logdensity, k_warm, k_draw, w_init,
-                                                warmup, draws, show)
+        w_draws, info, step_size, t_warm = _run(pb, Lj, k_warm, k_draw, w_init, warmup,
+                                                draws, show)
     seconds = time.perf_counter() - t_start
     w_draws = np.asarray(w_draws)  # (chains, draws, d)
     z_draws = np.asarray(z0) + w_draws @ L.T
@@ -184,19 +182,34 @@ def _windows(n: int) -> list:
     return [(first, False), *out, (last, False)]
 
 
-def _run(blackjax, logdensity, k_warm, k_draw, w_init, warmup, draws, show):
-    """Warmup, then `draws` NUTS transitions of every chain: one compiled program (a chunk
-    of `CHUNK` transitions of all the chains, `jax.vmap` over them, the step size tuned by
-    dual averaging inside it while warming up), called chunk after chunk (the progress
-    bar's steps); the diagonal mass matrix estimated between chunks, at the end of each
-    slow window (`_windows`). Returns positions (chains, draws, d), infos, step sizes and
-    the warmup's seconds."""
+def _log_density(spec, ll, tp, z0, L):
+    """The log density of the whitened coordinates w (z = z0 + L w) of the problem made of
+    `spec` (names, priors), `ll` (its log_likelihood) and `tp` (its to_physical)."""
+    names, priors = spec
+    pb = PosteriorProblem(names=names, log_likelihood=ll, to_physical=tp, z0=z0, cov0=None,
+                          priors=dict(priors))
+    return lambda w: pb.log_density(z0 + L @ w)
+
+
+@eqx.filter_jit
+def _init(spec, ll, tp, z0, L, w_init):
+    import blackjax
+
+    logdensity = _log_density(spec, ll, tp, z0, L)
+    return jax.vmap(lambda w: blackjax.nuts.init(w, logdensity))(w_init)
+
+
+@eqx.filter_jit
+def _chunk(spec, ll, tp, z0, L, states, das, imms, eps, keys, adapting):
+    """`CHUNK` NUTS transitions of every chain (`jax.vmap` over them; keys (CHUNK,
+    chains)); while `adapting`, the step size of each chain follows its dual averaging."""
+    import blackjax
     from blackjax.adaptation.step_size import dual_averaging_adaptation
 
-    da_init, da_update, da_final = dual_averaging_adaptation(0.8)
-    chains, d = w_init.shape
+    logdensity = _log_density(spec, ll, tp, z0, L)
+    _, da_update, _ = dual_averaging_adaptation(TARGET_ACCEPTANCE)
 
-    def one(carry, k, imm, eps_fixed, adapting):
+    def one(carry, k, imm, eps_fixed):
         state, da = carry
         eps = jnp.where(adapting, jnp.exp(da.log_step_size), eps_fixed)
         kernel = blackjax.nuts(logdensity, step_size=eps, inverse_mass_matrix=imm)
@@ -207,19 +220,31 @@ def _run(blackjax, logdensity, k_warm, k_draw, w_init, warmup, draws, show):
         return (state, da), (state.position, info.is_divergent, acc,
                              info.num_integration_steps)
 
-    @jax.jit
-    def chunk(states, das, imms, eps, keys, adapting):  # keys (CHUNK, chains)
-        def body(carry, ks):
-            s, da = carry
-            return jax.vmap(one, in_axes=(0, 0, 0, 0, None))((s, da), ks, imms, eps,
-                                                            adapting)
+    def body(carry, ks):
+        return jax.vmap(one)(carry, ks, imms, eps)
 
-        return jax.lax.scan(body, (states, das), keys)
+    return jax.lax.scan(body, (states, das), keys)
 
-    states = jax.jit(jax.vmap(lambda w: blackjax.nuts.init(w, logdensity)))(w_init)
+
+def _run(pb, L, k_warm, k_draw, w_init, warmup, draws, show):
+    """Warmup, then `draws` NUTS transitions of every chain: one compiled program
+    (`_chunk`: `CHUNK` transitions of all the chains, the step size tuned by dual averaging
+    inside it while warming up), called chunk after chunk (the progress bar's steps); the
+    diagonal mass matrix estimated between chunks, at the end of each slow window
+    (`_windows`). The program takes the problem's arrays as arguments (an equinox module
+    log-likelihood's leaves): a second problem of the same shapes reuses it. Returns
+    positions (chains, draws, d), infos, step sizes and the warmup's seconds."""
+    from blackjax.adaptation.step_size import dual_averaging_adaptation
+
+    da_init, _, da_final = dual_averaging_adaptation(TARGET_ACCEPTANCE)
+    chains, d = w_init.shape
+    spec = (tuple(pb.names), tuple(sorted(pb.priors.items())))
+    args = (spec, pb.log_likelihood, pb.to_physical, jnp.asarray(np.asarray(pb.z0, float)), L)
+    states = _init(*args, w_init)
     eps = jnp.full(chains, 0.5)
     das = jax.vmap(da_init)(eps)
     imms = jnp.ones((chains, d))
+    yes, no = jnp.asarray(True), jnp.asarray(False)
     n_warm = -(-warmup // CHUNK)
     n_draw = -(-draws // CHUNK)
     wkeys = jax.random.split(k_warm, max(n_warm, 1) * CHUNK * chains).reshape(-1, CHUNK,
@@ -232,7 +257,7 @@ def _run(blackjax, logdensity, k_warm, k_draw, w_init, warmup, draws, show):
         for size, slow in _windows(n_warm):
             positions = []
             for _ in range(size):
-                (states, das), o = chunk(states, das, imms, eps, wkeys[c], True)
+                (states, das), o = _chunk(*args, states, das, imms, eps, wkeys[c], yes)
                 c += 1
                 positions.append(np.asarray(o[0]))
                 if bar is not None:
@@ -247,7 +272,7 @@ def _run(blackjax, logdensity, k_warm, k_draw, w_init, warmup, draws, show):
         t_warm = time.perf_counter() - t0
         out = []
         for c in range(n_draw):
-            (states, das), o = chunk(states, das, imms, eps, dkeys[c], False)
+            (states, das), o = _chunk(*args, states, das, imms, eps, dkeys[c], no)
             out.append(jax.tree.map(np.asarray, o))
             if bar is not None:
                 bar.update(CHUNK * chains)
@@ -255,7 +280,10 @@ def _run(blackjax, logdensity, k_warm, k_draw, w_init, warmup, draws, show):
         if bar is not None:
             bar.close()
     pos, div, acc, steps = (np.concatenate([o[i] for o in out])[:draws] for i in range(4))
-    swap = (lambda x: np.swapaxes(x, 0, 1))  # (draws, chains, ...) -> (chains, draws, ...)
+
+    def swap(x):  # (draws, chains, ...) -> (chains, draws, ...)
+        return np.swapaxes(x, 0, 1)
+
     return (swap(pos), {"divergent": swap(div), "acceptance": swap(acc),
                         "steps": swap(steps)}, np.asarray(eps), t_warm)
 
@@ -336,8 +364,8 @@ class Posterior:
         problems = []
         bad_r = {n: v for n, v in rh.items() if not v <= RHAT_MAX}
         if bad_r:
-            problems.append("R-hat above {:.2f} (the chains disagree: a multimodal posterior "
-                            "or chains that have not mixed): ".format(RHAT_MAX)
+            problems.append(f"R-hat above {RHAT_MAX:.2f} (the chains disagree: a "
+                            "multimodal posterior or chains that have not mixed): "
                             + ", ".join(f"{n} {v:.3g}" for n, v in bad_r.items()))
         bad_e = {n: v for n, v in es.items() if not v >= need}
         if bad_e:

@@ -28,6 +28,7 @@ centred on the fit), r uniform(0, 1), u0, t0 and the sensor's offsets and drift 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import equinox as eqx
@@ -62,45 +63,76 @@ DEFAULT_PRIORS = ("k_f: lognormal(start, 2); c_f: lognormal(start, 2); r: unifor
 """The default priors of a decay fit's posterior, in words."""
 
 
+@functools.partial(jax.custom_vjp, nondiff_argnums=(2,))
+def _residuals(z, dyn, static):
+    model, mask = eqx.combine(dyn, static)
+    return model.residuals(z, mask)
+
+
+def _residuals_fwd(z, dyn, static):
+    model, mask = eqx.combine(dyn, static)
+    r, J = model.res_jac(z, mask)
+    return r, (J, dyn)
+
+
+def _residuals_bwd(static, res, g):
+    J, dyn = res
+    return J.T @ g, jax.tree.map(jnp.zeros_like, dyn)
+
+
+_residuals.defvjp(_residuals_fwd, _residuals_bwd)
+
+
+class DecayLogLikelihood(eqx.Module):
+    """log L(z) of a decay fit (module docstring): the residuals of each channel with its
+    noise level integrated out. An equinox module (the trace's arrays are leaves), so that
+    the sampler's compiled program is reused by any trace of the same length and settings;
+    its gradient is J^T g with J the forward-mode Jacobian (`_residuals`, a custom VJP)."""
+
+    model: TraceModel
+    mask: jax.Array
+    n_keep: jax.Array
+    n_ch: int = eqx.field(static=True)
+
+    def residuals(self, z):
+        dyn, static = eqx.partition((self.model, self.mask), eqx.is_array)
+        return _residuals(z, dyn, static)
+
+    def __call__(self, z):
+        r = self.residuals(z).reshape(self.n_ch, -1)
+        rss = jnp.maximum(jnp.sum(r**2, axis=1), 1e-300)
+        return -0.5 * self.n_keep * jnp.sum(jnp.log(rss))
+
+
+class _ToPhysical(eqx.Module):
+    model: TraceModel
+    names: tuple = eqx.field(static=True)
+
+    def __call__(self, z):
+        v = self.model.decode(z)
+        return {p: v[p] for p in self.names}
+
+
 def decay_problem(problem: Problem, z_opt, keep, priors=None) -> PosteriorProblem:
     """The `PosteriorProblem` of a decay fit (module docstring): the fit's `Problem`, its
     optimum `z_opt` and the samples it kept (`keep`, bool per sample)."""
     model = TraceModel.build(problem)
     names = tuple(problem.params)
     pri = parse_priors(priors, names, default_priors(problem))
-    n = problem.t.size
-    n_ch = len(problem.channels)
     keep = np.asarray(keep, bool)
     mask = jnp.asarray(keep, float)
-    n_keep = float(np.count_nonzero(keep))
-
-    @jax.custom_vjp
-    def residuals(z):
-        return model.residuals(z, mask)
-
-    def fwd(z):
-        r, J = model.res_jac(z, mask)
-        return r, J
-
-    def bwd(J, g):
-        return (J.T @ g,)
-
-    residuals.defvjp(fwd, bwd)
-
-    def log_likelihood(z):
-        r = residuals(z).reshape(n_ch, n)
-        rss = jnp.maximum(jnp.sum(r**2, axis=1), 1e-300)
-        return -0.5 * n_keep * jnp.sum(jnp.log(rss))
-
-    def to_physical(z):
-        v = model.decode(z)
-        return {p: v[p] for p in names}
-
+    n_ch = len(problem.channels)
+    log_likelihood = DecayLogLikelihood(model=model, mask=mask,
+                                        n_keep=jnp.asarray(float(np.count_nonzero(keep))),
+                                        n_ch=n_ch)
+    to_physical = _ToPhysical(model=model, names=names)
+    n = problem.t.size
     z0 = np.asarray(z_opt, float)
     with _checks_as_nan():
         r0, J0 = eqx.filter_jit(lambda m, z, mk: m.res_jac(z, mk))(model, jnp.asarray(z0), mask)
     r0, J0 = np.asarray(r0).reshape(n_ch, n), np.asarray(J0).reshape(n_ch, n, -1)
     H = np.zeros((len(names),) * 2)
+    n_keep = float(np.count_nonzero(keep))
     for c in range(n_ch):
         rss = max(float(np.sum(r0[c] ** 2)), 1e-300)
         H += (n_keep / rss) * (J0[c].T @ J0[c])

@@ -3,8 +3,9 @@ r"""Posteriors by NUTS: `sample_posterior` and its result, `Posterior`.
 Any fit that hands over a `PosteriorProblem` (`identification._bayes`; a decay fit's
 `FitResult.posterior_problem`, `identification._posterior_decay`) is sampled here with the
 No-U-Turn sampler of blackjax (`blackjax.nuts`, its step size and diagonal mass matrix
-tuned by `blackjax.window_adaptation`), several chains run together (`jax.vmap` over the
-chains: one compiled program).
+tuned during warmup as `blackjax.window_adaptation` does: Stan's windows, dual averaging
+of the step size), several chains run together (`jax.vmap` over the chains: one compiled
+program, `_chunk`, for the warmup and the draws, reused by any problem of the same shapes).
 
 **Whitening.** The chains run in $w$, with $z = z^* + L w$ and $L L^T$ the fit's Laplace
 covariance in $z$ (`PosteriorProblem.cov0`): where the Laplace approximation holds, the
@@ -99,7 +100,8 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
     - `priors`: None (the fit's documented defaults), or a dict name -> `Prior` or text
       ("lognormal(2e6, 1)"), passed to `source.posterior_problem`.
     - `chains`, `draws`, `warmup`: the chains, the draws kept per chain, and the warmup
-      (window adaptation of the step size and the diagonal mass matrix) per chain.
+      (adaptation of the step size and the diagonal mass matrix) per chain; both are
+      rounded up to whole chunks of `CHUNK` = 25 transitions (the extra draws dropped).
     - `seed`: the random seed (`jax.random.key`).
     - `progress`: a tqdm bar on stderr (default None: when stderr is a terminal).
     - `init`: the starting points in the unconstrained coordinates z, shape
@@ -108,11 +110,15 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
     **Returns:** a `Posterior`. Warns `PosteriorWarning` when its diagnostics fail
     (`Posterior.ok` False; the warning names each failure).
 
-    ```python
-    trace, truth = identification.synthetic_trace(duration=2.0, noise=1e-3, seed=3)
-    fit = identification.fit_decay(trace, rockjax.mcmanus_column(), params=("k_f", "r"))
-    post = identification.sample_posterior(fit, chains=2, draws=100, warmup=100)
-    post.interval("k_f")
+    Example (minutes on a CPU: not run by the docstring tests):
+
+    ```
+    trace, truth = identification.synthetic_trace(duration=8.0, seed=3)
+    fit = identification.fit_decay(trace, rockjax.mcmanus_column())
+    post = identification.sample_posterior(fit)    # 4 chains x 1000 draws
+    print(post.report())                           # WARNING first if the diagnostics fail
+    post.interval("k_f", 0.9), post.ok
+    post.to_csv("draws.csv")                       # for rockjax fragility --draws
     ```
     """
     from ._residuals import _checks_as_nan

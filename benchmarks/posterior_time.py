@@ -19,7 +19,6 @@ import time
 import warnings
 
 import jax
-import numpy as np
 
 import identification
 import rockjax

@@ -147,3 +147,92 @@ def test_bad_arguments():
         identification.sample_posterior(object())
     with pytest.raises(ValueError, match="init"):
         identification.sample_posterior(TOY, chains=2, init=np.zeros((3, 2)))
+
+
+# ------------------------------------------------------------ decay fits (slow)
+
+
+@pytest.fixture(scope="module")
+def decay_fit():
+    """A well-posed SYNTHETIC decay trace (3 s at 100 Hz, 0.5 mm noise) and its fit."""
+    import rockjax
+
+    trace, truth = identification.synthetic_trace(duration=3.0, rate_hz=100.0, noise=5e-4,
+                                                  seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fit = identification.fit_decay(trace, rockjax.mcmanus_column())
+    return fit, truth
+
+
+@pytest.mark.slow
+def test_decay_posterior_problem(decay_fit):
+    import jax
+
+    fit, _ = decay_fit
+    pb = fit.posterior_problem()
+    assert pb.names == fit.names and pb.source == "decay"
+    assert pb.priors["r"].kind == "uniform" and pb.priors["k_f"].kind == "lognormal"
+    z0 = jnp.asarray(pb.z0)
+    from identification._residuals import _checks_as_nan
+
+    with _checks_as_nan():
+        lp = float(pb.log_density(z0))
+        g = np.asarray(jax.grad(pb.log_density)(z0))
+        h = 1e-5
+        fd = np.array([(float(pb.log_density(z0 + h * e)) - float(pb.log_density(z0 - h * e)))
+                       / (2 * h) for e in np.eye(z0.size)])
+    assert math.isfinite(lp)
+    np.testing.assert_allclose(g, fd, rtol=1e-3, atol=1e-3)
+    # the physical values at z0 are the fit's
+    x0 = pb.to_physical(z0)
+    for p in fit.names:
+        assert float(x0[p]) == pytest.approx(fit.values[p], rel=1e-9, abs=1e-12)
+    with pytest.raises(ValueError, match="not a parameter"):
+        fit.posterior_problem({"c_f": "flat"})
+
+
+@pytest.mark.slow
+def test_decay_posterior_agrees_with_laplace(decay_fit):
+    """Where the Laplace approximation holds (a well-posed trace), the posterior agrees:
+    mean within 0.5 SE of the fit's value, sd within 30 % of the SE, for k_f and r."""
+    from identification._posterior_decay import laplace_check
+
+    fit, truth = decay_fit
+    post = identification.sample_posterior(fit, chains=4, draws=250, warmup=150, seed=0)
+    assert post.ok, post.problems
+    check = laplace_check(post, tol_mean=0.5, tol_sd=0.3)
+    for p in ("k_f", "r"):
+        assert check[p]["agrees"], (p, check[p])
+        assert post.laplace["value"][p] == pytest.approx(fit.values[p])
+        assert post.laplace["se"][p] == pytest.approx(fit.stderr[p], rel=0.2)
+        lo, hi = post.interval(p, 0.99)
+        assert lo < truth[p] < hi
+
+
+@pytest.mark.slow
+def test_cli_fit_posterior(tmp_path):
+    from conftest import run_cli
+
+    trace, _ = identification.synthetic_trace(duration=2.0, rate_hz=100.0, noise=5e-4, seed=4)
+    csv = tmp_path / "decay.csv"
+    np.savetxt(csv, np.column_stack([trace.t, trace.u]), delimiter=",", header="t,u",
+               comments="")
+    out_csv = tmp_path / "draws.csv"
+    r = run_cli("fit", str(csv), "--params", "k_f", "r", "u0", "t0", "--offset", "no",
+                "--posterior", "--chains", "2", "--draws", "50", "--warmup", "50",
+                "--prior", "k_f=lognormal(8e5,1)", "--draws-out", str(out_csv), "--json",
+                cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    post = out["posterior"]
+    assert set(post["parameters"]) == {"k_f", "r", "u0", "t0"}
+    assert post["priors"]["k_f"] == "lognormal(median=800000, sigma_ln=1)"
+    assert isinstance(post["ok"], bool) and "rhat" in post["parameters"]["k_f"]
+    lines = out_csv.read_text().splitlines()
+    assert lines[0].startswith("# units: k_f N/m, r -") and lines[1] == "k_f,r,u0,t0"
+    assert len(lines) == 2 + 2 * 50
+    bad = run_cli("fit", str(csv), "--prior", "k_f=lognormal(8e5,1)", cwd=tmp_path)
+    assert bad.returncode != 0 and "--prior needs --posterior" in bad.stderr
+    bad = run_cli("fit", str(csv), "--posterior", "--prior", "q=flat", cwd=tmp_path)
+    assert bad.returncode != 0 and "--prior" in bad.stderr and "not a parameter" in bad.stderr

@@ -1,5 +1,5 @@
 """Issue 25: where the Laplace approximation does not hold. A short, weakly informative
-SYNTHETIC decay trace (2 s at 100 Hz, 1 mm noise, McManus column at k_f 800 kN/m, r 0.85),
+SYNTHETIC decay trace (2 s at 200 Hz, 1 mm noise, McManus column at k_f 800 kN/m, r 0.85),
 fitted from the Table 1 start: the log-likelihood along k_f (the other parameters at the
 fit's values) is scanned for its local maxima, the posterior is sampled from the default
 start, and, when the scan finds a second maximum, with two chains started in each: what
@@ -33,7 +33,7 @@ HERE = pathlib.Path(__file__).resolve().parent
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--duration", type=float, default=2.0)
-    ap.add_argument("--rate", type=float, default=100.0)
+    ap.add_argument("--rate", type=float, default=200.0)
     ap.add_argument("--noise", type=float, default=1e-3)
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--draws", type=int, default=300)

@@ -159,11 +159,22 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
         seconds={"warmup_s": t_warm, "total_s": seconds})
 
 
+MAX_Z_SD = 3.0
+"""The largest sd of a coordinate of z that the whitening takes from the Laplace covariance:
+a parameter the fit cannot pin down (a k_f run off to the rigid limit, its standard error
+1e30) would otherwise start the chains where the model overflows; its scale is then set by
+the warmup (the mass matrix) instead."""
+
+
 def _cholesky(cov: np.ndarray) -> np.ndarray:
-    """A lower-triangular L with L L^T = cov (cov made positive definite if need be)."""
+    """A lower-triangular L with L L^T = cov (made positive definite if need be, and no
+    coordinate's sd above `MAX_Z_SD`)."""
     cov = 0.5 * (cov + cov.T)
     if not np.all(np.isfinite(cov)):
         return np.eye(cov.shape[0])
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    shrink = np.where(sd > MAX_Z_SD, MAX_Z_SD / np.where(sd > 0, sd, 1.0), 1.0)
+    cov = cov * np.outer(shrink, shrink)
     try:
         return np.linalg.cholesky(cov)
     except np.linalg.LinAlgError:

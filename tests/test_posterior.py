@@ -176,20 +176,24 @@ def test_decay_posterior_problem(decay_fit):
     z0 = jnp.asarray(pb.z0)
     from identification._residuals import _checks_as_nan
 
+    se = np.sqrt(np.diag(pb.cov0))  # the Laplace sd of each coordinate of z
+    z1 = z0 + 0.5 * jnp.asarray(se)  # off the optimum: a gradient of order 1 / se
     with _checks_as_nan():
         lp = float(pb.log_density(z0))
-        g = np.asarray(jax.grad(pb.log_density)(z0))
-        h = 1e-5
-        fd = np.array([(float(pb.log_density(z0 + h * e)) - float(pb.log_density(z0 - h * e)))
-                       / (2 * h) for e in np.eye(z0.size)])
+        g = np.asarray(jax.grad(pb.log_density)(z1))
+        fd = np.array([(float(pb.log_density(z1 + h * e)) - float(pb.log_density(z1 - h * e)))
+                       / (2 * h) for h, e in zip(1e-3 * se, np.eye(z0.size))])
     assert math.isfinite(lp)
-    np.testing.assert_allclose(g, fd, rtol=1e-3, atol=1e-3)
+    # in units of the posterior's own scale (gradient x sd: of order 1 here)
+    assert np.max(np.abs(g * se)) > 0.1
+    np.testing.assert_allclose(g * se, fd * se, rtol=1e-3, atol=1e-3)
     # the physical values at z0 are the fit's
     x0 = pb.to_physical(z0)
     for p in fit.names:
         assert float(x0[p]) == pytest.approx(fit.values[p], rel=1e-9, abs=1e-12)
     with pytest.raises(ValueError, match="not a parameter"):
         fit.posterior_problem({"c_f": "flat"})
+    assert fit.posterior_problem({"k_f": "lognormal(8e5, 0.5)"}).priors["k_f"].a == 8e5
 
 
 @pytest.mark.slow

@@ -154,11 +154,13 @@ def test_bad_arguments():
 
 @pytest.fixture(scope="module")
 def decay_fit():
-    """A well-posed SYNTHETIC decay trace (3 s at 100 Hz, 0.2 mm noise) and its fit."""
+    """A well-posed SYNTHETIC decay trace (8 s at 200 Hz, 0.5 mm noise) and its fit. (Short
+    traces, 3 s at 100 Hz say, pin k_f down poorly: their posteriors reach towards the
+    rigid limit, far from the Laplace Gaussian, and mix slowly: benchmarks/
+    posterior_coverage.md.)"""
     import rockjax
 
-    trace, truth = identification.synthetic_trace(duration=3.0, rate_hz=100.0, noise=2e-4,
-                                                  seed=0)
+    trace, truth = identification.synthetic_trace(duration=8.0, noise=5e-4, seed=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fit = identification.fit_decay(trace, rockjax.mcmanus_column())
@@ -205,7 +207,7 @@ def test_decay_posterior_agrees_with_laplace(decay_fit):
     from identification._posterior_decay import laplace_check
 
     fit, truth = decay_fit
-    post = identification.sample_posterior(fit, chains=4, draws=250, warmup=150, seed=0)
+    post = identification.sample_posterior(fit, chains=4, draws=200, warmup=100, seed=0)
     assert post.ok, post.problems
     check = laplace_check(post, tol_mean=0.5, tol_sd=0.3)
     for p in ("k_f", "r"):

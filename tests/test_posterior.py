@@ -63,7 +63,7 @@ def test_diagnostics_known_cases():
     rhat, ess = diagnostics(iid)
     assert rhat < 1.01 and 0.8 * 4000 < ess < 1.25 * 4000
     # AR(1), rho = 0.5: ESS = N (1 - rho) / (1 + rho) = N / 3
-    rho, x = 0.5, np.zeros((4, 4000))
+    rho, x = 0.5, np.zeros((4, 1000))  # the shape of iid: one compile of each diagnostic
     e = rng.standard_normal(x.shape)
     for t in range(1, x.shape[1]):
         x[:, t] = rho * x[:, t - 1] + math.sqrt(1 - rho**2) * e[:, t]

@@ -48,6 +48,11 @@ from ._outcome_table import (
 )
 from ._outcomes import fit_outcomes as fit_outcomes, OutcomeFit as OutcomeFit
 from ._outliers import OUTLIER_SIGMAS as OUTLIER_SIGMAS
+from ._posterior import (
+    Posterior as Posterior,
+    PosteriorWarning as PosteriorWarning,
+    sample_posterior as sample_posterior,
+)
 from ._problem import NUISANCE as NUISANCE, PARAM_NAMES as PARAM_NAMES, UNITS as UNITS
 from ._release import detect_release as detect_release, Release as Release
 from ._result import (

@@ -90,6 +90,21 @@ class FitResult:
     start: dict = dataclasses.field(default_factory=dict)
     ranking: tuple = ()
     channels: tuple = ("u",)
+    #: what `posterior_problem` needs: (the Problem, the optimum z, the kept samples)
+    fit_state: tuple | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    def posterior_problem(self, priors=None):
+        """The fit's posterior as an `identification.PosteriorProblem` (for
+        `identification.sample_posterior`): the likelihood of the trace with each
+        channel's noise level marginalised (Jeffreys prior), the fit's optimum and its
+        Laplace covariance, and `priors` (None: the documented defaults, or a dict
+        name -> `Prior` or text); see `identification._posterior_decay`."""
+        from ._posterior_decay import decay_problem
+
+        if self.fit_state is None:
+            raise ValueError("this FitResult holds no fit state (made by hand, or by an "
+                             "older version): fit the trace again with fit_decay")
+        return decay_problem(*self.fit_state, priors)
 
     @property
     def diagnosis(self) -> dict | None:
@@ -197,4 +212,5 @@ def result(problem: Problem, run: Run, best: Best, unc: Uncertainty, ident: dict
         notes=problem.notes,
         start={p: float(problem.values0[p]) for p in params},
         channels=problem.channels,
+        fit_state=(problem, np.asarray(best.z, float), np.asarray(keep, bool)),
     )

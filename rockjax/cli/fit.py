@@ -127,8 +127,78 @@ def add_parser(subparsers):
                    metavar="N", help="number of optimiser starts, run in parallel (default: "
                    "fit_decay's)")
     add_outputs(f, "write measured vs fitted traces and residuals")
+    _add_posterior_arguments(f)
     f.set_defaults(func=run)
     return f
+
+
+def _add_posterior_arguments(f):
+    g = f.add_argument_group(
+        "posterior", "sample the posterior of the fitted parameters by NUTS (blackjax) after "
+        "the fit (one trace; identification.sample_posterior): its report (mean, sd, 90 % "
+        "interval, R-hat, ESS beside the Laplace values; a WARNING line first when the "
+        "diagnostics fail) is printed after the fit's, and --json gains a 'posterior' block")
+    g.add_argument("--posterior", action="store_true", help="sample the posterior")
+    count = converter("--chains", int, lambda n: n >= 1, "be at least 1")
+    g.add_argument("--chains", type=count, default=4, metavar="N",
+                   help="chains, run together (default 4)")
+    g.add_argument("--draws", type=converter("--draws", int, lambda n: n >= 4,
+                                             "be at least 4"),
+                   default=1000, metavar="N", help="draws kept per chain (default 1000)")
+    g.add_argument("--warmup", type=converter("--warmup", int, lambda n: n >= 0,
+                                              "be at least 0"),
+                   default=500, metavar="N", help="warmup transitions per chain (default 500)")
+    g.add_argument("--prior", action="append", metavar="NAME=KIND(...)",
+                   help="prior of a fitted parameter, repeatable: k_f=lognormal(2e6,1), "
+                   "r=uniform(0.5,1), u0=normal(0.1,0.01), c_f=halfnormal(500), t0=flat "
+                   "(default: k_f, c_f lognormal(start, 2), r uniform(0, 1), the others "
+                   "flat; each channel's noise level integrated out)")
+    g.add_argument("--draws-out", metavar="FILE.csv",
+                   help="write the posterior draws as CSV (a '# units:' line, then one "
+                   "column per parameter: what rockjax fragility/spectrum --draws read)")
+
+
+def _check_posterior_options(args):
+    """--chains/--draws/--warmup/--prior/--draws-out need --posterior and one trace."""
+    given = [flag for flag, on in (("--prior", args.prior), ("--draws-out", args.draws_out))
+             if on]
+    if given and not args.posterior:
+        raise CLIError(f"{given[0]} needs --posterior")
+    if not args.posterior:
+        return
+    if len(args.trace) > 1:
+        raise CLIError("--posterior samples the fit of one trace; a joint fit's posterior "
+                       "is not available from the command line yet")
+    if args.draws_out is not None:
+        p = pathlib.Path(args.draws_out)
+        if p.is_dir() or not p.parent.is_dir():
+            raise CLIError(f"--draws-out: not a file in an existing folder: {args.draws_out}")
+    for text in args.prior or ():
+        if "=" not in text:
+            raise CLIError(f"--prior {text}: expected NAME=KIND(numbers), such as "
+                           "k_f=lognormal(2e6,1)")
+
+
+def _posterior(args, fit):
+    """The posterior of the fit (--posterior), its CSV written (--draws-out)."""
+    import identification
+
+    priors = None
+    if args.prior:
+        priors = {}
+        for text in args.prior:
+            name, _, kind = text.partition("=")
+            priors[name.strip()] = kind
+    try:
+        pb = fit.posterior_problem(priors)
+    except ValueError as e:
+        raise CLIError(f"--prior: {e}") from None
+    post = identification.sample_posterior(pb, chains=args.chains, draws=args.draws,
+                                           warmup=args.warmup,
+                                           progress=False if args.json else None)
+    if args.draws_out:
+        post.to_csv(args.draws_out)
+    return post
 
 
 def fit_trace(trace, structure, params, *, model="simplified", impact="paper", r=None,
@@ -294,6 +364,7 @@ def run(args):
     import identification  # heavy (optax, the fit's JAX code): only when a fit runs
 
     check_outputs(args, r=False)
+    _check_posterior_options(args)
     fm = _check_model_options(args, identification)
     s = load_structure(args.structure, args.check_plausible)
     joint = len(args.trace) > 1
@@ -309,6 +380,7 @@ def run(args):
     if args.model == AUTO:  # the report is the chosen rung's, with the ranking beside it
         args, fm = _chosen(args, fit, identification)
     info = _fit_model_info(args, s, fit, fm)
+    post = _posterior(args, fit) if args.posterior else None
     if args.plot:
         fig = (plot_joint_fit(traces, fit, title=f"joint fit of {len(traces)} traces, "
                               f"{model_line(info)}") if joint else
@@ -325,11 +397,17 @@ def run(args):
         else:
             out = {"file": str(args.trace[0]), "model": info, "trace": traces[0].info(),
                    **summary, "t0_used_s": fit.values.get("t0", fit.fixed.get("t0"))}
+        if post is not None:
+            out["posterior"] = {**post.summary(), "draws_out": args.draws_out}
         print(json.dumps(out))
         return 0
     (_print_joint if joint else _print_report)(args, s, traces, fit, info, read_warnings)
     if getattr(fit, "ranking", None):  # --model auto (one trace; a joint fit has none)
         print(ranking_lines(fit))
+    if post is not None:
+        print("\n" + post.report())
+        if args.draws_out:
+            print(f"posterior draws written to {args.draws_out}")
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

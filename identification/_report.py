@@ -13,16 +13,20 @@ _LOSS = "loss          {:.6g}  (1/2 sum of squared residuals / scale^2)"
 
 def value_table(fit, truth=None) -> str:
     """The fitted values, their standard errors (and the truth, error/SE) as a table; the
-    truth of an absent nuisance parameter is 0."""
+    truth of an absent nuisance parameter is 0, of any other parameter missing from
+    `truth` blank."""
     head = f"{'parameter':<10}{'fitted':>14}{'std. error':>14}"
     lines = [head + (f"{'true':>14}{'error/SE':>10}" if truth is not None else "") + "  unit"]
     for p in fit.names:
         v, se = fit.values[p], fit.stderr[p]
         row = f"{p:<10}{v:>14.6g}{se:>14.3g}"
         if truth is not None:
-            tv = truth.get(p, 0.0) if p.split("[")[0] in NUISANCE else truth[p]
-            z = (v - tv) / se if se > 0 and math.isfinite(se) else float("nan")
-            row += f"{tv:>14.6g}{z:>10.2f}"
+            tv = truth.get(p, 0.0 if p.split("[")[0] in NUISANCE else None)
+            if tv is None:  # not given: nothing to compare with
+                row += f"{'':>14}{'':>10}"
+            else:
+                z = (v - tv) / se if se > 0 and math.isfinite(se) else float("nan")
+                row += f"{tv:>14.6g}{z:>10.2f}"
         lines.append(row + f"  {UNITS[p.split('[')[0]]}")
     return "\n".join(lines)
 

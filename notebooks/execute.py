@@ -158,13 +158,16 @@ def execute_notebook(nb, *, el_centro: pathlib.Path, workdir: pathlib.Path,
 
     The kernel's environment is this process's plus `ROCKJAX_EL_CENTRO=el_centro` (a
     missing file makes the notebooks fall back to synthetic motion), `ROCKJAX_SHARED_DATA`
-    its folder (the shared records of notebook 08) and `ROCKJAX_CACHE`
+    its folder (the shared records of notebooks 08 and 09), `ROCKJAX_SHAKEBOT` the shared
+    ShakeBot table beside it (notebook 09) and `ROCKJAX_CACHE`
     under `workdir`, the kernel's working folder. Raises nbclient's CellExecutionError.
     """
     import nbclient
 
     env = dict(os.environ, ROCKJAX_EL_CENTRO=str(el_centro),
                ROCKJAX_SHARED_DATA=str(pathlib.Path(el_centro).parent),
+               ROCKJAX_SHAKEBOT=str(pathlib.Path(el_centro).parent.parent / "shakebot"
+                                    / "exp270.csv"),
                ROCKJAX_CACHE=str(pathlib.Path(workdir) / "cache"))
     client = nbclient.NotebookClient(
         nb, timeout=timeout, kernel_name="python3", record_timing=False,

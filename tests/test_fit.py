@@ -337,5 +337,9 @@ def test_report_is_the_fit_as_text(noisy_fit):
     assert lines[len(fit.names) + 1] == "" and lines[len(fit.names) + 2] == (
         "warning: dropped 2 rows")
     assert any(ln.startswith("lack of fit   ") for ln in lines)
+    # a truth without t0 (a shake-table user knows k_f and r): that row's truth is blank
+    part = fit.report(truth={"k_f": truth["k_f"], "r": truth["r"]}).splitlines()
+    t0_row = next(ln for ln in part if ln.split()[0] == "t0")
+    assert len(t0_row.split()) == 4 and t0_row.split()[-1] == "s"
     assert "no hold before the motion" in fit.release_text() or "after a hold" in \
         fit.release_text()

@@ -185,15 +185,19 @@ def read_draws(path, *, ignore=NUISANCE) -> dict:
     return {n: np.asarray(v, float) for n, v in cols.items()}
 
 
-def check_draws(draws) -> dict:
+def check_draws(draws, ignore=NUISANCE) -> dict:
     """The draws as a dict of float arrays of one length >= 2 (`MIN_DRAWS`): known names
     (`PARAMETERS`), finite values, r in [0, 1], c_f >= 0; errors name the parameter and
-    the draw."""
+    the draw. The names in `ignore` (default `NUISANCE`, as `read_draws`: a fit's release
+    state, sensor zeros and clock offset, which `identification.Posterior.draws_dict()`
+    gives beside k_f and r) are left out."""
     if not hasattr(draws, "items"):
         raise ParameterError(f"draws must be a mapping name -> 1-D array (e.g. from "
                              f"rockjax.read_draws), got {type(draws).__name__}", param="draws")
     out = {}
     for name, v in draws.items():
+        if _ignored(name, tuple(ignore or ())):
+            continue
         if name not in PARAMETERS:
             raise ParameterError(f"draws: {name!r} is not a parameter of a prediction (known: "
                                  f"{', '.join(PARAMETERS)})", param="draws")

@@ -410,7 +410,9 @@ def fragility_band(structure, records, scales, draws, *, im="PGA", limit="overtu
     - `records`, `scales`, `labels`, `model`: as `rockjax.sweep` (default model
       `"simplified"`, as `sweep`; `"rigid_body"` is the one recommended for fragility).
     - `draws`: name -> 1-D array of SI values, one per draw (`rockjax.read_draws` reads
-      them from CSV; `identification.Posterior.draws_dict()` gives them), at least 2.
+      them from CSV; `identification.Posterior.draws_dict()` gives them), at least 2; a
+      fit's nuisances (`rockjax._draws.NUISANCE`: t0, u0, sensor zeros, the clock offset)
+      are left out.
     - `im`, `limit`: as `rockjax.fragility`; `confidence` (default 0.9) of the band and
       of the intervals of θ and β; `grid` [IM units]: where the curves are tabulated
       (default 200 points from half the smallest IM used to 1.5 times the largest).

@@ -145,6 +145,19 @@ def test_bad_draws_name_the_problem(column, records):
         assert e.value.param == "draws"
 
 
+def test_a_posteriors_draws_dict_keeps_only_what_predicts():
+    """`identification.Posterior.draws_dict()` holds the fit's nuisances beside k_f and r
+    (t0, u0, the sensor zeros, a joint fit's u0[1]): they are left out, as `read_draws`
+    leaves out their columns; an unknown name is still an error."""
+    from rockjax._draws import check_draws
+
+    kept = check_draws({"k_f": [6e5, 7e5], "r": [0.8, 0.7], "t0": [0.01, 0.02],
+                        "u0[1]": [0.1, 0.1], "offset": [0.0, 1e-4]})
+    assert sorted(kept) == ["k_f", "r"] and kept["k_f"][1] == 7e5
+    with pytest.raises(rockjax.ParameterError, match="'t0' is not a parameter"):
+        check_draws({"k_f": [6e5, 7e5], "t0": [0.01, 0.02]}, ignore=())
+
+
 # ---------------------------------------------------------------------------- read_draws
 def test_read_draws(tmp_path):
     p = write_draws(tmp_path / "d.csv", "k_f,r,u0,c_f",

@@ -332,3 +332,28 @@ def test_the_90_percent_intervals_cover_synthetic_truths(grid):
             covered[n] += fit.interval90[n][0] <= v <= fit.interval90[n][1]
     print("coverage of 20:", covered)
     assert all(c >= 15 for c in covered.values()), covered
+
+
+@pytest.mark.slow
+def test_nuts_posterior_of_the_shakebot_fit(shakebot, grid):
+    """`sample_posterior` on an outcome fit (the third kind of evidence): the chains agree
+    (ok: R-hat, ESS, no divergences), the posterior medians lie within the fit's 90 %
+    intervals, and its draws carry into the posterior-predictive boundary: P(topple) at
+    the fitted threshold of a pulse is about 1/2 (β's spread keeps it there)."""
+    import warnings
+
+    fit = identification.fit_outcomes(shakebot, grid=grid)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", identification.PosteriorWarning)
+        post = identification.sample_posterior(fit, chains=4, draws=400, warmup=300, seed=0,
+                                               progress=False)
+    assert post.ok, post.report()
+    for name in ("alpha", "R", "beta"):
+        med = float(np.median(post.draws[name]))
+        lo, hi = fit.interval90[name]
+        assert lo <= med <= hi, (name, med, lo, hi)
+    T = 2 * np.pi * 0.1
+    a_c = float(fit.threshold(np.array([T]))[0])
+    p = float(np.asarray(fit.probability(np.array([a_c]), np.array([T]),
+                                         draws=post.draws_dict(200)))[0])
+    assert 0.3 < p < 0.7

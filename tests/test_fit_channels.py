@@ -150,6 +150,7 @@ def test_cli_reads_a_rotation_column(column, motion, tmp_path, capsys):
     assert k_f == pytest.approx(float(column.k_f), rel=0.02)
 
 
+@pytest.mark.slow  # compile-bound (~14 s); tests/test_plotting.py checks the fit plots
 def test_plot_of_a_rotation_fit(column, motion):
     """`plot_fit` draws the channels the trace has (a rotation alone: in mrad)."""
     t, u, theta, up = motion

@@ -226,6 +226,7 @@ def test_the_two_segments_fitted_jointly(two_releases):
 # --------------------------------------------------------------------- convergence
 
 
+@pytest.mark.slow  # compile-bound (~15 s): a fit of its own shape
 def test_an_unconverged_fit_warns():
     """max_iter = 4 stops every horizon after one chunk: converged False, and a
     ConvergenceWarning (in `warnings` too). The shipped clean trace with the defaults: the

@@ -372,7 +372,7 @@ def _fd5(f, x, h):
     return (-f(x + 2 * h) + 8 * f(x + h) - 8 * f(x - h) + f(x - 2 * h)) / (12 * h)
 
 
-@pytest.mark.slow  # compile-bound (~21 s); test_gradients checks the rk4 gradients in the default suite
+@pytest.mark.slow  # compile-bound (~21 s); test_gradients checks rk4 gradients by default
 def test_rk4_gradients_match_finite_differences(column):
     """jacrev == jacfwd == 5-point central differences (float64), through impacts."""
     scale = jnp.asarray([5.5e5, 0.8, 0.1])  # k_f [N/m], r, u0 [m]

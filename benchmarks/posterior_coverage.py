@@ -10,7 +10,7 @@ ESS, divergences, ok and the wall time, one JSON line per trace (appended: a run
 resumed), and writes the table to benchmarks/posterior_coverage.md.
 
     python benchmarks/posterior_coverage.py [--n 40] [--duration 3] [--rate 100]
-        [--draws 300] [--warmup 200] [--chains 4]
+        [--draws 300] [--warmup 200] [--chains 4] [--out PREFIX] [--first SEED] [--report]
 
 The traces all have the same length, so the compiled fit and the compiled sampler are
 reused from the second trace on.
@@ -118,11 +118,20 @@ def main():
     ap.add_argument("--warmup", type=int, default=200)
     ap.add_argument("--chains", type=int, default=4)
     ap.add_argument("--out", default=str(HERE / "posterior_coverage"))
+    ap.add_argument("--first", type=int, default=0,
+                    help="the first seed (two processes on two cores: --first 0 and --first 20 "
+                    "with their own --out, then their .jsonl lines joined and --report)")
+    ap.add_argument("--report", action="store_true",
+                    help="only write the .md from the .jsonl (no runs)")
     a = ap.parse_args()
     jl = pathlib.Path(a.out + ".jsonl")
     rows = [json.loads(x) for x in jl.read_text().splitlines()] if jl.exists() else []
+    rows.sort(key=lambda r: r["seed"])
+    if a.report:
+        write_md(rows, a, pathlib.Path(a.out + ".md"))
+        return
     done = {r["seed"] for r in rows}
-    for seed in range(a.n):
+    for seed in range(a.first, a.n):
         if seed in done:
             continue
         row = one(seed, a)

@@ -61,7 +61,8 @@ def one(seed: int, a) -> dict:
            "warned": any(issubclass(w.category, identification.PosteriorWarning)
                          for w in caught),
            "rhat_max": max(post.rhat.values()), "ess_min": min(post.ess.values()),
-           "divergences": post.divergences, "params": list(post.names), "load": os.getloadavg()[0]}
+           "divergences": post.divergences, "params": list(post.names), "load": os.getloadavg()[0],
+           "likelihood": post.settings.get("likelihood", "")}
     for p in ("k_f", "r"):
         lo, hi = post.interval(p, 0.9)
         row[p] = {"lo": lo, "hi": hi, "covers": bool(lo <= tr[p] <= hi),

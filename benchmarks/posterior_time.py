@@ -23,6 +23,8 @@ import jax
 import identification
 import rockjax
 
+rockjax.configure()  # float64 and one CPU device per core, before any computation
+
 HERE = pathlib.Path(__file__).resolve().parent
 
 

@@ -182,6 +182,11 @@ class PosteriorProblem:
     - `z0`: the optimum (unconstrained); `cov0`: its Laplace covariance in z (or None).
     - `priors`: name -> `Prior` (on the physical value).
     - `units`: name -> SI unit; `source`: "decay", "shake table" or "outcomes".
+    - `chains_together`: the sampler runs the chains as one vectorised program (`jax.vmap`,
+      True) or one after the other inside it (`jax.lax.map`, False: for a likelihood whose
+      cost grows with the batch under `vmap`, the fixed-step solver's).
+    - `likelihood_note`: how the likelihood is computed, when it is not the fit's own
+      (`Posterior.report` prints it).
     """
 
     names: tuple
@@ -192,6 +197,8 @@ class PosteriorProblem:
     priors: dict
     units: dict = dataclasses.field(default_factory=dict)
     source: str = ""
+    chains_together: bool = True
+    likelihood_note: str = ""
 
     def physical_vector(self, z):
         """The physical values as a vector, order `names`."""

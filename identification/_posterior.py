@@ -155,7 +155,8 @@ def sample_posterior(source, *, priors=None, chains: int = 4, draws: int = 1000,
         pb, phys, z_draws, divergent=np.asarray(info["divergent"]),
         acceptance=np.asarray(info["acceptance"]), steps=np.asarray(info["steps"]),
         step_size=np.asarray(step_size), laplace=laplace,
-        settings={"chains": chains, "draws": draws, "warmup": warmup, "seed": seed},
+        settings={"chains": chains, "draws": draws, "warmup": warmup, "seed": seed,
+                  "likelihood": pb.likelihood_note},
         seconds={"warmup_s": t_warm, "total_s": seconds})
 
 
@@ -208,16 +209,39 @@ def _log_density(spec, ll, tp, z0, L):
     return lambda w: pb.log_density(z0 + L @ w)
 
 
+def _over_chains(f, together, *xs):
+    """f over the leading (chain) axis of xs: `jax.vmap` when `together`, else
+    `jax.lax.map` (one chain after the other; `PosteriorProblem.chains_together`), the
+    chains split evenly over the devices when there are several (`rockjax.configure()`:
+    one CPU device per core) and they divide the chains."""
+    if together:
+        return jax.vmap(f)(*xs)
+
+    def serial(*xs):
+        return jax.lax.map(lambda a: f(*a), xs)
+
+    devices = jax.devices()
+    chains = jax.tree.leaves(xs)[0].shape[0]
+    if len(devices) < 2 or chains % len(devices):
+        return serial(*xs)
+    from jax.sharding import Mesh, PartitionSpec
+
+    mesh = Mesh(np.array(devices), ("chains",))
+    spec = PartitionSpec("chains")
+    return jax.shard_map(serial, mesh=mesh, in_specs=(spec,) * len(xs), out_specs=spec,
+                         check_vma=False)(*xs)
+
+
 @eqx.filter_jit
-def _init(spec, ll, tp, z0, L, w_init):
+def _init(spec, ll, tp, z0, L, w_init, together=True):
     import blackjax
 
     logdensity = _log_density(spec, ll, tp, z0, L)
-    return jax.vmap(lambda w: blackjax.nuts.init(w, logdensity))(w_init)
+    return _over_chains(lambda w: blackjax.nuts.init(w, logdensity), together, w_init)
 
 
 @eqx.filter_jit
-def _chunk(spec, ll, tp, z0, L, states, das, imms, eps, keys, adapting):
+def _chunk(spec, ll, tp, z0, L, states, das, imms, eps, keys, adapting, together=True):
     """`CHUNK` NUTS transitions of every chain (`jax.vmap` over them; keys (CHUNK,
     chains)); while `adapting`, the step size of each chain follows its dual averaging."""
     import blackjax
@@ -238,7 +262,7 @@ def _chunk(spec, ll, tp, z0, L, states, das, imms, eps, keys, adapting):
                              info.num_integration_steps)
 
     def body(carry, ks):
-        return jax.vmap(one)(carry, ks, imms, eps)
+        return _over_chains(one, together, carry, ks, imms, eps)
 
     return jax.lax.scan(body, (states, das), keys)
 
@@ -257,7 +281,8 @@ def _run(pb, L, k_warm, k_draw, w_init, warmup, draws, show):
     chains, d = w_init.shape
     spec = (tuple(pb.names), tuple(sorted(pb.priors.items())))
     args = (spec, pb.log_likelihood, pb.to_physical, jnp.asarray(np.asarray(pb.z0, float)), L)
-    states = _init(*args, w_init)
+    together = bool(pb.chains_together)
+    states = _init(*args, w_init, together)
     eps = jnp.full(chains, 0.5)
     das = jax.vmap(da_init)(eps)
     imms = jnp.ones((chains, d))
@@ -274,7 +299,8 @@ def _run(pb, L, k_warm, k_draw, w_init, warmup, draws, show):
         for size, slow in _windows(n_warm):
             positions = []
             for _ in range(size):
-                (states, das), o = _chunk(*args, states, das, imms, eps, wkeys[c], yes)
+                (states, das), o = _chunk(*args, states, das, imms, eps, wkeys[c], yes,
+                                             together)
                 c += 1
                 positions.append(np.asarray(o[0]))
                 if bar is not None:
@@ -289,7 +315,7 @@ def _run(pb, L, k_warm, k_draw, w_init, warmup, draws, show):
         t_warm = time.perf_counter() - t0
         out = []
         for c in range(n_draw):
-            (states, das), o = _chunk(*args, states, das, imms, eps, dkeys[c], no)
+            (states, das), o = _chunk(*args, states, das, imms, eps, dkeys[c], no, together)
             out.append(jax.tree.map(np.asarray, o))
             if bar is not None:
                 bar.update(CHUNK * chains)
@@ -349,7 +375,9 @@ class Posterior:
     - `ok`: R-hat <= `RHAT_MAX`, ESS >= `ess_threshold` and no divergence;
       `problems`: what failed, in words (empty when ok).
     - `priors`: name -> the prior, in words; `source`: the kind of fit; `settings`:
-      chains, draws, warmup, seed; `seconds`: warmup and total wall time.
+      chains, draws, warmup, seed and `likelihood` (how it was computed, when not by the
+      fit's own solver: `PosteriorProblem.likelihood_note`); `seconds`: warmup and total
+      wall time.
     """
 
     names: tuple
@@ -500,6 +528,8 @@ class Posterior:
                      "step size " + ", ".join(f"{v:.3g}" for v in self.step_size)
                      + f"; {self.n_leapfrog:.1f} leapfrog steps per draw")
         lines.append("priors        " + "; ".join(f"{n} {p}" for n, p in self.priors.items()))
+        if s.get("likelihood"):
+            lines.append("likelihood    " + s["likelihood"])
         return "\n".join(lines)
 
     def plot(self, pair=("k_f", "r"), fig=None):

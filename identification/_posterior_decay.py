@@ -1,5 +1,7 @@
-r"""The posterior of a decay fit (`FitResult.posterior_problem`): what `fit_decay` hands to
-the sampler (`identification.sample_posterior`).
+r"""The posterior of a fit of response channels (`FitResult.posterior_problem` of a decay,
+`ShakeTableFitResult.posterior_problem` of a shake-table run): what the fit hands to the
+sampler (`identification.sample_posterior`). Both kinds share this likelihood, its
+gradient and its default priors.
 
 **Likelihood.** The residuals of each channel $c$ (u, theta, uplift; `TraceModel`: the
 fit's own, in units of the trace amplitude, over the samples the fit kept) are independent
@@ -20,6 +22,20 @@ Jacobian $J$ together and whose backward pass is $g \mapsto J^T g$: `jax.grad` o
 likelihood (what NUTS takes at every leapfrog step) costs one forward-mode sweep with $d$
 tangents and no reverse pass through the solver.
 
+**The fixed-step likelihood.** The fit's adaptive solver (diffrax, rtol 1e-9) costs about
+25 ms a gradient for an 8-s trace, and under `jax.vmap` over the chains its loops run to the
+longest member. The posterior therefore evaluates the same likelihood on the fixed-step
+path (`TraceModel.on_grid`: `rockjax.integrators.RK4` steps of the trace's sample step,
+events located inside each step, the response interpolated to the sample times), the chains
+one after the other (`PosteriorProblem.chains_together` False), and only after checking it:
+on `GRID_CHECK_POINTS` points of the Laplace approximation spread 1.5 times wider, the two
+log likelihoods must differ by a constant to within a standard deviation of
+`GRID_LOGL_SD` = 0.05 (the two posteriors then differ by about that much in total
+variation: far inside the Monte Carlo error of the draws). A step that fails is halved, up
+to `GRID_HALVINGS` times; if none passes, the posterior keeps the adaptive solver.
+`PosteriorProblem.likelihood_note` (and `Posterior.report`) says which was used and the
+measured difference.
+
 **Default priors** (on the physical values; `DEFAULT_PRIORS`): k_f and c_f lognormal
 around their starting values (the structure's k_f, the default or given c_f) with
 $\sigma_{\ln} = 2$ (a factor of $e^2 \approx 7.4$ at one sd: weakly informative, not
@@ -28,6 +44,7 @@ centred on the fit), r uniform(0, 1), u0, t0 and the sensor's offsets and drift 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -40,16 +57,24 @@ from ._bayes import parse_priors, PosteriorProblem, Prior
 from ._problem import Problem, UNITS
 from ._residuals import _checks_as_nan, TraceModel
 
+GRID_CHECK_POINTS = 16
+"""Points of the check of the fixed-step likelihood (module docstring)."""
+GRID_LOGL_SD = 0.05
+"""The largest sd of (fixed-step - adaptive) log L over those points."""
+GRID_HALVINGS = 2
+"""Halvings of the fixed step tried before keeping the adaptive solver."""
+
 SIGMA_LN = 2.0
 """The sd of ln k_f (and ln c_f) of the default lognormal priors."""
 
 
-def default_priors(problem: Problem) -> dict:
-    """The default prior of every fitted parameter (module docstring)."""
+def default_priors(params, values0) -> dict:
+    """The default prior of every fitted parameter (module docstring; `values0`: the fit's
+    starting values)."""
     out = {}
-    for p in problem.params:
+    for p in params:
         if p in ("k_f", "c_f"):
-            out[p] = Prior.lognormal(float(problem.values0[p]), SIGMA_LN)
+            out[p] = Prior.lognormal(float(values0[p]), SIGMA_LN)
         elif p == "r":
             out[p] = Prior.uniform(0.0, 1.0)
         else:
@@ -89,10 +114,10 @@ class DecayLogLikelihood(eqx.Module):
     the sampler's compiled program is reused by any trace of the same length and settings;
     its gradient is J^T g with J the forward-mode Jacobian (`_residuals`, a custom VJP)."""
 
-    model: TraceModel
+    model: TraceModel  # or a joint fit's `_joint._JointModel`: the same two methods
     mask: jax.Array
-    n_keep: jax.Array
-    n_ch: int = eqx.field(static=True)
+    n_keep: jax.Array  # samples kept per group (one noise level each), or one count
+    n_ch: int = eqx.field(static=True)  # groups: channels (x traces of a joint fit)
 
     def residuals(self, z):
         dyn, static = eqx.partition((self.model, self.mask), eqx.is_array)
@@ -101,7 +126,7 @@ class DecayLogLikelihood(eqx.Module):
     def __call__(self, z):
         r = self.residuals(z).reshape(self.n_ch, -1)
         rss = jnp.maximum(jnp.sum(r**2, axis=1), 1e-300)
-        return -0.5 * self.n_keep * jnp.sum(jnp.log(rss))
+        return -0.5 * jnp.sum(self.n_keep * jnp.log(rss))
 
 
 class _ToPhysical(eqx.Module):
@@ -116,35 +141,117 @@ class _ToPhysical(eqx.Module):
 def decay_problem(problem: Problem, z_opt, keep, priors=None) -> PosteriorProblem:
     """The `PosteriorProblem` of a decay fit (module docstring): the fit's `Problem`, its
     optimum `z_opt` and the samples it kept (`keep`, bool per sample)."""
-    model = TraceModel.build(problem)
-    names = tuple(problem.params)
-    pri = parse_priors(priors, names, default_priors(problem))
-    keep = np.asarray(keep, bool)
+    return residual_problem(TraceModel.build(problem), keep, z_opt, priors, "decay")
+
+
+def residual_problem(model: TraceModel, keep, z_opt, priors=None,
+                     source: str = "decay") -> PosteriorProblem:
+    """The `PosteriorProblem` of a fit of response channels (a decay, a shake-table run):
+    its `TraceModel`, the samples it kept (`keep`, per sample), its optimum `z_opt`;
+    each channel's noise level integrated out (Jeffreys), the default priors of
+    `default_priors` under `priors` (module docstring)."""
+    names = tuple(model.params)
+    n_ch = sum(x is not None for x in (model.u, model.th, model.up))
+    keep = np.asarray(keep) > 0
+    return _problem(model, keep, np.full(n_ch, float(np.count_nonzero(keep))), z_opt,
+                    names, default_priors(names, model.values0), priors,
+                    _ToPhysical(model=model, names=names), source)
+
+
+def joint_problem(model, keep, z_opt, names, values0, priors=None) -> PosteriorProblem:
+    """The `PosteriorProblem` of a joint fit of several traces (`JointFitResult`):
+    `model` its `_joint._JointModel` (residuals trace after trace, each trace's channels
+    in turn), `keep` (traces, samples) the samples of each trace (not the padding),
+    `names` the joint parameters (k_f, r shared; u0[i], t0[i] per trace), `values0`
+    the starting values. A noise level per trace and channel, integrated out; the shared
+    parameters' default priors as a single trace's, each trace's own flat."""
+    keep = np.asarray(keep) > 0
+    m = keep.shape[0]
+    st = model.stacked
+    n_ch = sum(x is not None for x in (st.u, st.th, st.up))
+    n_keep = np.repeat(np.count_nonzero(keep, axis=1).astype(float), n_ch)
+    return _problem(model, keep.reshape(-1), n_keep, z_opt, tuple(names),
+                    default_priors(names, values0), priors,
+                    _JointToPhysical(model=model, names=tuple(names), traces=m), "joint decay")
+
+
+def _problem(model, keep, n_keep, z_opt, names, defaults, priors, to_physical, source):
+    pri = parse_priors(priors, names, defaults)
     mask = jnp.asarray(keep, float)
-    n_ch = len(problem.channels)
-    log_likelihood = DecayLogLikelihood(model=model, mask=mask,
-                                        n_keep=jnp.asarray(float(np.count_nonzero(keep))),
-                                        n_ch=n_ch)
-    to_physical = _ToPhysical(model=model, names=names)
-    n = problem.t.size
+    groups = n_keep.size
+    log_likelihood = DecayLogLikelihood(model=model, mask=mask, n_keep=jnp.asarray(n_keep),
+                                        n_ch=groups)
     z0 = np.asarray(z_opt, float)
     with _checks_as_nan():
         r0, J0 = eqx.filter_jit(lambda m, z, mk: m.res_jac(z, mk))(model, jnp.asarray(z0), mask)
-    r0, J0 = np.asarray(r0).reshape(n_ch, n), np.asarray(J0).reshape(n_ch, n, -1)
+    r0, J0 = np.asarray(r0).reshape(groups, -1), np.asarray(J0).reshape(groups, -1, z0.size)
     H = np.zeros((len(names),) * 2)
-    n_keep = float(np.count_nonzero(keep))
-    for c in range(n_ch):
+    for c in range(groups):
         rss = max(float(np.sum(r0[c] ** 2)), 1e-300)
-        H += (n_keep / rss) * (J0[c].T @ J0[c])
+        H += (n_keep[c] / rss) * (J0[c].T @ J0[c])
     try:
         cov0 = np.linalg.inv(H)
         if not np.all(np.isfinite(cov0)):
             cov0 = None
     except np.linalg.LinAlgError:
         cov0 = None
-    return PosteriorProblem(names=names, log_likelihood=log_likelihood,
+    fast, note = (None, "") if not isinstance(model, TraceModel) else _on_grid(
+        log_likelihood, z0, cov0)
+    return PosteriorProblem(names=names,
+                            log_likelihood=log_likelihood if fast is None else fast,
                             to_physical=to_physical, z0=z0, cov0=cov0, priors=pri,
-                            units={p: UNITS[p] for p in names}, source="decay")
+                            units={p: UNITS[p.split("[")[0]] for p in names}, source=source,
+                            chains_together=fast is None, likelihood_note=note)
+
+
+class _JointToPhysical(eqx.Module):
+    model: object  # _joint._JointModel
+    names: tuple = eqx.field(static=True)
+    traces: int = eqx.field(static=True)
+
+    def __call__(self, z):
+        v = jax.vmap(lambda mod, zl: mod.decode(zl))(self.model.stacked, z[self.model.index])
+        out = {}
+        for p in self.names:
+            base, _, i = p.partition("[")
+            out[p] = v[base][int(i[:-1]) if i else 0]
+        return out
+
+
+def _on_grid(ll: DecayLogLikelihood, z0, cov0):
+    """(the fixed-step log likelihood, or None, and the note): module docstring."""
+    model = ll.model
+    if cov0 is None or model.accel is not None:
+        return None, ""
+    t = np.asarray(model.t, float)
+    t0 = float(model.decode(jnp.asarray(z0))["t0"])
+    span = float(t[-1]) - min(t0, float(t[0]))
+    t1 = span + max(0.25, 0.02 * span)
+    step = float(np.median(np.diff(t)))
+    L = np.linalg.cholesky(cov0)
+    w = 1.5 * np.random.default_rng(0).standard_normal((GRID_CHECK_POINTS, z0.size))
+    Z = jnp.asarray(z0 + w @ L.T)
+    values = eqx.filter_jit(lambda f, Z: jax.lax.map(f, Z))
+    with _checks_as_nan():
+        exact = np.asarray(values(ll, Z))
+    ok = np.isfinite(exact)
+    if np.count_nonzero(ok) < GRID_CHECK_POINTS // 2:
+        return None, ""
+    tried = []
+    for k in range(GRID_HALVINGS + 1):
+        dt = step / 2**k
+        fast = dataclasses.replace(ll, model=model.on_grid(dt, t1))
+        with _checks_as_nan():
+            got = np.asarray(values(fast, Z))
+        diff = got[ok] - exact[ok]
+        sd = float(np.std(diff)) if np.all(np.isfinite(diff)) else math.inf
+        tried.append(f"{1e3 * dt:.3g} ms: {sd:.2g}")
+        if sd <= GRID_LOGL_SD:
+            return fast, (f"fixed-step likelihood (RK4, dt {1e3 * dt:.3g} ms; its log L "
+                          f"differs from the adaptive solver's by a constant to sd {sd:.2g} "
+                          f"over {np.count_nonzero(ok)} Laplace points)")
+    return None, ("adaptive solver (the fixed-step likelihood missed sd <= "
+                  f"{GRID_LOGL_SD:g}: {'; '.join(tried)})")
 
 
 def laplace_check(post, tol_mean: float = 0.5, tol_sd: float = 0.3) -> dict:

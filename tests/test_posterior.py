@@ -8,6 +8,7 @@ posteriors (Laplace agreement on a well-posed trace, a bimodal k_f) are slow.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import warnings
@@ -245,3 +246,37 @@ def test_cli_fit_posterior(tmp_path):
     assert bad.returncode != 0 and "--prior needs --posterior" in bad.stderr
     bad = run_cli("fit", str(csv), "--posterior", "--prior", "q=flat", cwd=tmp_path)
     assert bad.returncode != 0 and "--prior" in bad.stderr and "not a parameter" in bad.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)
+def test_decay_posterior_runs_on_the_checked_fixed_step_likelihood(decay_fit, monkeypatch):
+    """The posterior's likelihood is the fixed-step one (RK4 on the trace's step) only
+    because it agrees with the fit's adaptive solver: on points the check did not use, the
+    two log likelihoods differ by a constant to well within 0.05; and a check that cannot
+    pass keeps the adaptive solver (chains vectorised again)."""
+    import jax
+
+    from identification import _posterior_decay as PD
+    from identification._residuals import _checks_as_nan
+
+    fit, _ = decay_fit
+    pb = fit.posterior_problem()
+    assert pb.chains_together is False and "fixed-step likelihood (RK4" in pb.likelihood_note
+    assert pb.log_likelihood.model.grid_dt is not None
+    exact = dataclasses.replace(pb.log_likelihood,
+                                model=dataclasses.replace(pb.log_likelihood.model,
+                                                          grid_dt=None, grid_t1=None))
+    L = np.linalg.cholesky(pb.cov0)
+    w = 1.5 * np.random.default_rng(7).standard_normal((12, pb.z0.size))
+    Z = jnp.asarray(pb.z0 + w @ L.T)
+    with _checks_as_nan():
+        a = np.asarray(jax.jit(jax.vmap(pb.log_likelihood))(Z))
+        b = np.asarray(jax.jit(jax.vmap(exact))(Z))
+    assert np.all(np.isfinite(a)) and np.all(np.isfinite(b))
+    assert np.ptp(b) > 3.0  # the points span the posterior: log L moves by several units
+    assert np.std(a - b) < 0.05
+    monkeypatch.setattr(PD, "GRID_LOGL_SD", 1e-12)
+    pb2 = fit.posterior_problem()
+    assert pb2.chains_together is True and pb2.log_likelihood.model.grid_dt is None
+    assert pb2.likelihood_note.startswith("adaptive solver")

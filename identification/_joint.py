@@ -81,6 +81,24 @@ class JointFitResult:
     warnings: tuple
     model: str
     notes: tuple = ()
+    #: what `posterior_problem` needs: (the joint model, its samples, the optimum z, the
+    #: starting values)
+    fit_state: tuple | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    def posterior_problem(self, priors=None):
+        """The joint fit's posterior as an `identification.PosteriorProblem` (for
+        `identification.sample_posterior`) over every fitted parameter (`joint_names`:
+        k_f, r shared, `u0[i]`, `t0[i]` of each trace): each trace's noise level
+        integrated out (Jeffreys prior), the shared parameters' default priors as a single
+        trace's, each trace's own flat; `priors`: name -> `Prior` or text over them
+        (`identification._posterior_decay.joint_problem`)."""
+        from ._posterior_decay import joint_problem
+
+        if self.fit_state is None:
+            raise ValueError("this JointFitResult holds no fit state (made by hand, or by "
+                             "an older version): fit the traces again with fit_decay")
+        model, keep, z, values0 = self.fit_state
+        return joint_problem(model, keep, z, self.joint_names, values0, priors)
 
     @property
     def n_traces(self) -> int:
@@ -313,7 +331,10 @@ def _fit(jp: _JointProblem, optimizer, sources) -> JointFitResult:
     best = best_start(jp, model, opt, run)
     responses = _responses(jp, model, transforms, best.z)
     unc = _uncertainty(jp, transforms, best)
-    return _result(jp, transforms, run, best, responses, unc, sources)
+    out = _result(jp, transforms, run, best, responses, unc, sources)
+    keep = jp.samples().reshape(len(jp.problems), -1)
+    values0 = {k: float(v) for k, v in jp.problems[0].values0.items()}
+    return dataclasses.replace(out, fit_state=(model, keep, np.asarray(best.z), values0))
 
 
 def _starting_points(jp: _JointProblem, transforms) -> np.ndarray:

@@ -33,12 +33,10 @@ import dataclasses
 import math
 import warnings
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from . import _models, _sensor
-from ._bayes import parse_priors, PosteriorProblem
+from ._bayes import PosteriorProblem
 from ._problem import (
     _check_options,
     _check_params,
@@ -48,7 +46,6 @@ from ._problem import (
     NUISANCE,
     Problem,
     Settings,
-    UNITS,
 )
 from ._release import Release
 from ._residuals import observed, TraceModel
@@ -119,55 +116,23 @@ class ShakeTableFitResult(FitResult):
                 "run": self.run}
 
     def posterior_problem(self, priors=None) -> PosteriorProblem:
-        """The posterior of the fitted parameters (`identification.PosteriorProblem`):
-        Gaussian residuals with each channel's noise level fixed at the fit's estimate
-        (`noise`), $\\log L(z) = -\\tfrac12\\sum_c \\|r_c(z)\\|^2 / s_c^2$ with $r_c$ the
-        fit's residuals (`TraceModel.residuals`) and $s_c$ their RMS at the optimum.
-        Its gradient (`jax.grad`) is $-J^T W r$ with the forward-mode Jacobian
-        (`TraceModel.res_jac`: the simulation is not reverse-differentiable). Default
-        priors flat (`priors`: name -> `Prior` or text)."""
-        model, mask, s_res, transform = self._posterior
-        z0 = jnp.asarray(np.array([self._z0[p] for p in self.names]))
-        w = jnp.asarray(np.repeat(1.0 / np.asarray(s_res) ** 2, int(mask.size)))
-        maskj = jnp.asarray(mask)
+        """The posterior of the fitted parameters (`identification.PosteriorProblem`), as
+        for a decay fit (`identification._posterior_decay`): Gaussian residuals of each
+        channel with its noise level integrated out (Jeffreys prior),
+        $\\log L(z) = -\\sum_c \\tfrac{n}{2} \\log \\mathrm{RSS}_c(z)$, the gradient
+        $J^T g$ from the forward-mode Jacobian (`TraceModel.res_jac`), and the same default
+        priors (k_f, c_f lognormal around their start with sd 2 in the log, r uniform on
+        [0, 1], the rest flat; `priors`: name -> `Prior` or text over them)."""
+        from ._posterior_decay import residual_problem
 
-        @jax.custom_vjp
-        def log_likelihood(z):
-            r = model.residuals(z, maskj)
-            return -0.5 * jnp.sum(w * r**2)
-
-        def fwd(z):  # the simulation differentiates in forward mode: J^T (w r) from res_jac
-            r, J = model.res_jac(z, maskj)
-            return -0.5 * jnp.sum(w * r**2), -(J.T @ (w * r))
-
-        def bwd(g, ct):
-            return (ct * g,)
-
-        log_likelihood.defvjp(fwd, bwd)
-
-        def to_physical(z):
-            v = model.decode(z)
-            return {p: v[p] for p in self.names}
-
-        cov = _z_covariance(self, transform)
-        return PosteriorProblem(
-            names=tuple(self.names), log_likelihood=log_likelihood, to_physical=to_physical,
-            z0=np.asarray(z0), cov0=cov, priors=parse_priors(priors, self.names, {}),
-            units={p: UNITS[p] for p in self.names}, source="shake table")
+        model, mask, _, _ = self._posterior
+        z0 = np.array([self._z0[p] for p in self.names])
+        return residual_problem(model, mask, z0, priors, source="shake table")
 
     @property
     def _z0(self) -> dict:
         tf = self._posterior[3]
         return tf.encode({**{k: float(v) for k, v in tf.values0.items()}, **self.values})
-
-
-def _z_covariance(fit, transform):
-    """The Laplace covariance in z: the natural one divided by d(value)/dz."""
-    z = np.array([fit._z0[p] for p in fit.names])
-    d = np.asarray(transform.derivatives(z))
-    se = np.array([fit.stderr[p] for p in fit.names])
-    cov = fit.correlation * np.outer(se, se)
-    return cov / np.outer(d, d)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

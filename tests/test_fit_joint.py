@@ -242,3 +242,38 @@ def test_persisted_programs_are_read_back_without_tracing(tmp_path, monkeypatch)
     monkeypatch.setattr(_aot, "store", lambda: None)  # cache off: plain filter_jit
     _aot.persisted(f, structure)(x, 4.0)
     assert len(traced) == 3 and len(list(tmp_path.glob("f-*.export"))) == 2
+
+
+@pytest.mark.slow  # compiles the joint residuals and Jacobian outside the fit (~1 min)
+def test_joint_posterior_problem(joint):
+    """The joint fit's posterior: every fitted parameter (shared and each trace's own),
+    the physical values at the optimum the fit's, the Laplace sd of k_f and r near the
+    fit's standard errors, and a gradient that a float64 central difference confirms."""
+    from identification._residuals import _checks_as_nan
+
+    pb = joint.posterior_problem()
+    assert pb.names == joint.joint_names and pb.source == "joint decay"
+    assert pb.priors["k_f"].kind == "lognormal" and pb.priors["r"].kind == "uniform"
+    assert pb.priors["u0[1]"].kind == "flat" and pb.units["t0[2]"] == "s"
+    z0 = jax.numpy.asarray(pb.z0)
+    x0 = pb.to_physical(z0)
+    for p in joint.names:
+        assert float(x0[p]) == pytest.approx(joint.values[p], rel=1e-9)
+    for i, d in enumerate(joint.per_trace):
+        assert float(x0[f"u0[{i}]"]) == pytest.approx(d["values"]["u0"], rel=1e-9)
+    # the Laplace sd in z of k_f, r (log-type coordinates) against the fit's SE: the
+    # marginalised noise and the fit's sandwich estimate agree to ~30 %
+    jac = np.asarray(jax.jacfwd(pb.physical_vector)(z0))
+    sd = np.sqrt(np.diag(jac @ pb.cov0 @ jac.T))
+    for j, p in enumerate(joint.names):
+        assert sd[j] == pytest.approx(joint.stderr[p], rel=0.3), p
+    se_z = np.sqrt(np.diag(pb.cov0))
+    z1 = z0 + 0.5 * jax.numpy.asarray(se_z)
+    with _checks_as_nan():
+        g = np.asarray(jax.grad(pb.log_density)(z1))
+        fd = np.array([(float(pb.log_density(z1 + h * e)) - float(pb.log_density(z1 - h * e)))
+                       / (2 * h) for h, e in zip(1e-3 * se_z, np.eye(z0.size))])
+    assert np.max(np.abs(g * se_z)) > 0.1
+    np.testing.assert_allclose(g * se_z, fd * se_z, rtol=1e-3, atol=2e-3)
+    with pytest.raises(ValueError, match="not a parameter"):
+        joint.posterior_problem({"c_f": "flat()"})

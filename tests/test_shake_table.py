@@ -74,8 +74,11 @@ def test_fit_recovers_k_f_r_and_the_clock_offset(fit):
 def test_posterior_problem_of_a_shake_table_fit(fit):
     import jax
 
-    pp = fit.posterior_problem()
+    # the decay fit's likelihood (noise integrated out) and default priors
+    assert fit.posterior_problem().priors["k_f"].kind == "lognormal"
+    pp = fit.posterior_problem({p: "flat()" for p in fit.names})
     assert pp.source == "shake table" and pp.names == fit.names
+    assert pp.chains_together  # a table record: the adaptive solver, chains vectorised
     z0 = np.asarray(pp.z0)
     ld = float(pp.log_density(z0))
     assert math.isfinite(ld)

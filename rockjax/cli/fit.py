@@ -135,7 +135,8 @@ def add_parser(subparsers):
 def _add_posterior_arguments(f):
     g = f.add_argument_group(
         "posterior", "sample the posterior of the fitted parameters by NUTS (blackjax) after "
-        "the fit (one trace; identification.sample_posterior): its report (mean, sd, 90 % "
+        "the fit (one trace, or the joint fit of several: every fitted parameter, u0[i] and "
+        "t0[i] of each trace; identification.sample_posterior): its report (mean, sd, 90 % "
         "interval, R-hat, ESS beside the Laplace values; a WARNING line first when the "
         "diagnostics fail) is printed after the fit's, and --json gains a 'posterior' block")
     g.add_argument("--posterior", action="store_true", help="sample the posterior")
@@ -159,16 +160,13 @@ def _add_posterior_arguments(f):
 
 
 def _check_posterior_options(args):
-    """--chains/--draws/--warmup/--prior/--draws-out need --posterior and one trace."""
+    """--chains/--draws/--warmup/--prior/--draws-out need --posterior."""
     given = [flag for flag, on in (("--prior", args.prior), ("--draws-out", args.draws_out))
              if on]
     if given and not args.posterior:
         raise CLIError(f"{given[0]} needs --posterior")
     if not args.posterior:
         return
-    if len(args.trace) > 1:
-        raise CLIError("--posterior samples the fit of one trace; a joint fit's posterior "
-                       "is not available from the command line yet")
     if args.draws_out is not None:
         p = pathlib.Path(args.draws_out)
         if p.is_dir() or not p.parent.is_dir():

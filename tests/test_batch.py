@@ -612,3 +612,19 @@ def test_sequence_errors(column, mixed, excitation, kwargs, match):
     exc = cases.get(excitation, excitation) if isinstance(excitation, str) else excitation
     with pytest.raises(ValueError, match=match):
         simulate_batch(column, exc, **kwargs)
+
+
+@pytest.mark.parametrize("n", [1, 31, 32, 33, 300, 4096, 20_000])
+def test_first_members_is_nonzero(n):
+    """The compacted stepper's index of the members with an event (`first_members`) is
+    `jnp.nonzero(mask, size=width, fill_value=n)[0]`: every density, a mask shorter or
+    longer than the width, lengths off the 32-bit words, and a chunk past the size where
+    the word ranks switch from a product to a cumulative sum."""
+    from rockjax.integrators._stepper import first_members
+
+    rng = np.random.default_rng(n)
+    for p in (0.0, 0.016, 0.3, 1.0):
+        mask = jnp.asarray(rng.random(n) < p)
+        for width in (1, 8, 128):
+            np.testing.assert_array_equal(first_members(mask, width),
+                                          jnp.nonzero(mask, size=width, fill_value=n)[0])

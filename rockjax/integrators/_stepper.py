@@ -270,6 +270,44 @@ def _take(x, idx, n):
     return jnp.take(x, idx, axis=0, mode="clip") if jnp.ndim(x) and x.shape[0] == n else x
 
 
+#: bits per word of `first_members`' bit mask
+_WORD = 32
+
+
+def first_members(mask, width):
+    """The indices of the first `width` True entries of the 1-D `mask`, in order (the
+    rest filled with len(mask)): `jnp.nonzero(mask, size=width, fill_value=len(mask))[0]`
+    at a fifth of its cost on a CPU, where `nonzero`'s cumulative sum over the whole
+    batch is a long chain of small operations.
+
+    The mask is packed into 32-bit words; a word's rank is the count of set bits before
+    it (a triangular product of the words' bit counts); each output slot finds its word
+    by comparison and its bit within the word by a binary search on bit counts."""
+    n = mask.shape[0]
+    nw = -(-n // _WORD)
+    bits = jnp.pad(mask, (0, nw * _WORD - n)).reshape(nw, _WORD).astype(jnp.uint32)
+    words = jnp.sum(bits << jnp.arange(_WORD, dtype=jnp.uint32), axis=1, dtype=jnp.uint32)
+    cnt = jax.lax.population_count(words).astype(jnp.float32)
+    if nw <= 512:  # set bits before each word (exact in float32 below 2**24 members)
+        before = (cnt @ jnp.triu(jnp.ones((nw, nw), jnp.float32), 1)).astype(jnp.int32)
+    else:  # a large chunk: the product would grow as nw**2
+        before = (jnp.cumsum(cnt) - cnt).astype(jnp.int32)
+    slot = jnp.arange(width, dtype=jnp.int32)
+    upto = before + cnt.astype(jnp.int32)  # set bits up to and including each word
+    w = jnp.sum((upto[None, :] <= slot[:, None]).astype(jnp.int32), axis=1)
+    found = w < nw
+    w = jnp.minimum(w, nw - 1)
+    word, k = words[w], slot - before[w]  # the slot is the k-th set bit of its word
+    pos = jnp.zeros_like(slot)
+    step = _WORD // 2
+    while step:
+        low = (jnp.uint32(1) << (pos + step).astype(jnp.uint32)) - jnp.uint32(1)
+        pos = jnp.where(jax.lax.population_count(word & low).astype(jnp.int32) <= k,
+                        pos + step, pos)
+        step //= 2
+    return jnp.where(found, w * _WORD + pos, n)
+
+
 def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     """rk4 over one step: one trial step for the whole batch; the members it takes to the
     end of the step without an event are done (the common case), the others (an event, a
@@ -280,7 +318,12 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     da = (a1 - a0) / L
     tau = jnp.zeros_like(a0)
     active = ~st.tally.done & (tau < L)
-    tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, L - tau, a0, da)
+    # the trial step of the whole batch: its end and the conditions at both ends (their
+    # rates, for locating a root, only in the sub-batch of the members with an event)
+    y1, _ = per_member(lambda *a: rk_step(model, *a, cfg), s)(st.y, st.mode, tau, L - tau, a0, da)
+    g0 = per_member(model.conditions, s)(st.y, st.mode, a0 + da * tau)
+    g1 = per_member(model.conditions, s)(y1, st.mode, a0 + da * (tau + (L - tau)))
+    tr = Trial(y1, None, g0, None, g1, None)
     ok = jnp.all(jnp.isfinite(tr.y1), axis=-1)
     easy = active & ok & ~jnp.any(fired(tr), axis=-1)
     hard = active & ~easy
@@ -298,7 +341,7 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
 
     def rounds(carry):  # up to `width` members with events at a time (usually one round)
         st, todo = carry
-        idx = jnp.nonzero(todo, size=width, fill_value=n)[0]
+        idx = first_members(todo, width)
         # t_start is per member when the members have their own grid steps
         s_, r_, st_, a0_, a1_, L_, t_ = jax.tree_util.tree_map(
             lambda x: _take(x, idx, n), (s, r, st, a0, a1, L, t_start))

@@ -13,10 +13,11 @@ Writes benchmarks/results.md and benchmarks/pareto.png (and prints the tables):
     smooth, and float32 against float64 (the Pareto plot);
 (d) the gradient cost of the identification loss (value_and_grad / value);
 (e) compile times and peak memory (each in a fresh process);
-(g) the compiled yardstick: rockjax's default batch against a hand-written numba peer of the
-    same algorithm (benchmarks/numba_peer.py; needs the `bench` extra, else skipped), 10,000
-    El Centro runs. `--only yardstick` runs just this section and keeps the others from
-    results.json.
+(g) the compiled yardstick: rockjax's default batch (`simplified` and `rigid_body`) against
+    its floor (benchmarks/floor.py: the same RK4 without events, plain JAX arrays) and a
+    hand-written numba peer of the same algorithm (benchmarks/numba_peer.py; needs the
+    `bench` extra, else left out), 10,000 El Centro runs, ns per member-step and the ratios.
+    `--only yardstick` runs just this section and keeps the others from results.json.
 
 All on the CPU, as a user runs it: `import rockjax` gives JAX one CPU device per core (unless
 XLA_FLAGS, JAX_NUM_CPU_DEVICES or ROCKJAX_CPU_DEVICES say otherwise), and batches are split
@@ -299,38 +300,53 @@ def memory(record):
 
 
 def yardstick(s, gm, n=10_000, repeats=3):
-    """(g): rockjax's default batch against a hand-written numba peer of the same algorithm
-    (benchmarks/numba_peer.py), side by side in this process on the same inputs: n El Centro
-    runs (scales 0.25-1.5, 40 s, summaries), numba on all threads and on one, rockjax on all
-    devices and on one. Each variant is compiled first, then the variants run interleaved,
-    `repeats` rounds, and the best round counts (the machine is shared). None if numba is
-    not installed."""
+    """(g): rockjax's default batch against its floor and a hand-written numba peer, side by
+    side in this process on the same inputs: n El Centro runs (scales 0.25-1.5, 40 s,
+    summaries). The variants: the floor (benchmarks/floor.py: the same RK4 of the same
+    SDOF without event location or impacts, plain JAX arrays in one `lax.fori_loop`) on
+    all devices and on one; `simulate_batch` with the `simplified` model on all devices
+    and on one, and with `rigid_body` on all devices; the numba peer
+    (benchmarks/numba_peer.py) on all threads and on one. Each variant is compiled first,
+    then the variants run interleaved, `repeats` rounds, and the best round counts (the
+    machine is shared). Without numba the peer's rows are left out."""
     import warnings
+
+    import floor
 
     try:
         import numba
         import numba_peer
     except ImportError as e:
-        print(f"  numba is not installed ({e}): the yardstick is skipped "
+        print(f"  numba is not installed ({e}): the peer is left out "
               "(pip install -e '.[bench]')", flush=True)
-        return None
+        numba = numba_peer = None
     scales = np.linspace(0.25, 1.5, n)
-    inp = numba_peer.peer_inputs(s, gm, T1)
-    n_thr, n_dev = numba.config.NUMBA_NUM_THREADS, len(jax.local_devices())
+    n_dev = len(jax.local_devices())
+    steps = floor.member_steps(T1, float(gm.dt), 4, n)  # default substeps: 4
+    f_inp = floor.floor_inputs(s, gm, T1)
 
-    def rockjax_batch(devices):
+    def rockjax_batch(model, devices):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rockjax.FidelityWarning)
             out = rockjax.simulate_batch(s, gm, T1, scale=scales, summary_only=True,
-                                         devices=devices, progress=False)
+                                         model=model, devices=devices, progress=False)
         return jax.block_until_ready(out)
 
     variants = {
-        f"numba, {n_thr} threads": lambda: numba_peer.simulate_peer(**inp, scales=scales),
-        "numba, 1 thread": lambda: numba_peer.simulate_peer(**inp, scales=scales, threads=1),
-        f"rockjax, {n_dev} devices": lambda: rockjax_batch(None),
-        "rockjax, 1 device": lambda: rockjax_batch(1),
+        f"floor, {n_dev} devices": lambda: floor.simulate_floor(**f_inp, scales=scales,
+                                                               devices=n_dev),
+        "floor, 1 device": lambda: floor.simulate_floor(**f_inp, scales=scales, devices=1),
+        f"rockjax simplified, {n_dev} devices": lambda: rockjax_batch("simplified", None),
+        "rockjax simplified, 1 device": lambda: rockjax_batch("simplified", 1),
+        f"rockjax rigid_body, {n_dev} devices": lambda: rockjax_batch("rigid_body", None),
     }
+    if numba is not None:
+        n_thr = numba.config.NUMBA_NUM_THREADS
+        inp = numba_peer.peer_inputs(s, gm, T1)
+        variants[f"numba, {n_thr} threads"] = lambda: numba_peer.simulate_peer(**inp,
+                                                                              scales=scales)
+        variants["numba, 1 thread"] = lambda: numba_peer.simulate_peer(**inp, scales=scales,
+                                                                        threads=1)
     first, best, outs = {}, {k: np.inf for k in variants}, {}
     cpu = dict(best)
     for name, fn in variants.items():
@@ -343,64 +359,100 @@ def yardstick(s, gm, n=10_000, repeats=3):
             fn()
             best[name] = min(best[name], time.perf_counter() - t0)
             cpu[name] = min(cpu[name], time.process_time() - c0)
-    peer, rj = outs[f"numba, {n_thr} threads"], outs[f"rockjax, {n_dev} devices"]
-    pu = np.asarray(rj.peak_u)
-    rel = np.abs(peer["peak_u"] - pu) / pu
-    over = np.isfinite(np.asarray(rj.t_overturn)) & np.isfinite(peer["t_overturn"])
-    acc = dict(max_peak_rel=float(rel.max()), median_peak_rel=float(np.median(rel)),
-               status_mismatch=int(np.sum(np.asarray(rj.status) != peer["status"])),
-               impacts_mismatch=int(np.sum(np.asarray(rj.n_impacts) != peer["n_impacts"])),
-               max_t_overturn_diff=float(np.max(np.abs(np.asarray(rj.t_overturn)[over]
-                                                       - peer["t_overturn"][over]),
-                                                initial=0.0)),
-               statuses={str(k): int(v) for k, v in zip(*np.unique(np.asarray(rj.status),
-                                                                   return_counts=True))})
-    rows = [dict(name=k, per_run_ms=best[k] / n * 1e3, wall_s=best[k], first_s=first[k],
-                 cpu_per_run_ms=cpu[k] / n * 1e3) for k in variants]
+    rows = [dict(name=k, per_run_ms=best[k] / n * 1e3, ns_per_member_step=best[k] / steps * 1e9,
+                 wall_s=best[k], first_s=first[k], cpu_per_run_ms=cpu[k] / n * 1e3)
+            for k in variants]
     for r in rows:
-        print(f"  {r['name']:22s} {r['per_run_ms']:.3f} ms/run, CPU {r['cpu_per_run_ms']:.3f} "
-              f"ms/run (best of {repeats}; first call {r['first_s']:.1f} s)", flush=True)
-    ratio = best[f"rockjax, {n_dev} devices"] / best[f"numba, {n_thr} threads"]
-    print(f"  rockjax / numba at all cores: {ratio:.2f}x; peak-u agreement max "
-          f"{acc['max_peak_rel']:.1e}, statuses differ {acc['status_mismatch']}, impact "
-          f"counts differ {acc['impacts_mismatch']}", flush=True)
-    return dict(n=n, repeats=repeats, threads=n_thr, devices=n_dev, rows=rows, ratio=ratio,
-                ratio_one=best["rockjax, 1 device"] / best["numba, 1 thread"], accuracy=acc,
-                date=time.strftime("%Y-%m-%d %H:%M"), numba=numba.__version__)
+        print(f"  {r['name']:34s} {r['per_run_ms']:.4f} ms/run, {r['ns_per_member_step']:6.2f} "
+              f"ns per member-step, CPU {r['cpu_per_run_ms']:.4f} ms/run (best of {repeats}; "
+              f"first call {r['first_s']:.1f} s)", flush=True)
+    simp = best[f"rockjax simplified, {n_dev} devices"]
+    ratios = dict(
+        simplified_over_floor=simp / best[f"floor, {n_dev} devices"],
+        simplified_over_floor_one=best["rockjax simplified, 1 device"] / best["floor, 1 device"],
+        rigid_body_over_simplified=best[f"rockjax rigid_body, {n_dev} devices"] / simp,
+    )
+    rj = outs[f"rockjax simplified, {n_dev} devices"]
+    acc, out = None, dict(n=n, repeats=repeats, devices=n_dev, member_steps=steps,
+                          date=time.strftime("%Y-%m-%d %H:%M"))
+    if numba is not None:
+        peer = outs[f"numba, {n_thr} threads"]
+        ratios["numba_over_simplified"] = best[f"numba, {n_thr} threads"] / simp
+        ratios["numba_over_simplified_one"] = (best["numba, 1 thread"]
+                                               / best["rockjax simplified, 1 device"])
+        pu = np.asarray(rj.peak_u)
+        rel = np.abs(peer["peak_u"] - pu) / pu
+        over = np.isfinite(np.asarray(rj.t_overturn)) & np.isfinite(peer["t_overturn"])
+        acc = dict(max_peak_rel=float(rel.max()), median_peak_rel=float(np.median(rel)),
+                   status_mismatch=int(np.sum(np.asarray(rj.status) != peer["status"])),
+                   impacts_mismatch=int(np.sum(np.asarray(rj.n_impacts) != peer["n_impacts"])),
+                   max_t_overturn_diff=float(np.max(np.abs(np.asarray(rj.t_overturn)[over]
+                                                           - peer["t_overturn"][over]),
+                                                    initial=0.0)),
+                   statuses={str(k): int(v) for k, v in
+                             zip(*np.unique(np.asarray(rj.status), return_counts=True))})
+        out.update(threads=n_thr, numba=numba.__version__)
+    print("  " + ", ".join(f"{k} {v:.2f}x" for k, v in ratios.items()), flush=True)
+    if acc is not None:
+        print(f"  peak-u agreement with numba: max {acc['max_peak_rel']:.1e}, statuses "
+              f"differ {acc['status_mismatch']}, impact counts differ "
+              f"{acc['impacts_mismatch']}", flush=True)
+    return dict(out, rows=rows, ratios=ratios, accuracy=acc)
 
 
 def yardstick_markdown(y):
     """The lines of section (g)."""
-    L = ["\n## (g) The compiled yardstick: rockjax against a numba peer\n"]
+    L = ["\n## (g) The compiled yardstick: rockjax against its floor and a numba peer\n"]
     if y is None:
-        return L + ["numba is not installed (`pip install -e \".[bench]\"`): not measured.\n"]
+        return L + ["Not measured.\n"]
+    if "ratios" not in y:  # a result of the earlier yardstick (no floor)
+        return L + ["Measured before the floor was added; rerun `python benchmarks/run.py "
+                    "--only yardstick`.\n"]
     L.append(f"{y['n']:,} El Centro runs (IELC180, scales 0.25-1.5, 40 s, summaries only, "
-             "Table 1 column, model simplified, impact rule paper), rockjax "
-             "`simulate_batch(..., summary_only=True)` with its default settings (rk4, "
-             "substeps 4) against `benchmarks/numba_peer.py`, the same algorithm written by "
-             "hand as a scalar loop per run with `numba.prange` over the runs (numba "
-             f"{y['numba']}). Measured {y['date']} by `python benchmarks/run.py --only "
-             f"yardstick`, all variants in one process on the same inputs, compiled first, "
-             f"then interleaved; the best of {y['repeats']} rounds (the machine is shared "
-             "with other jobs).\n")
-    L.append("| variant | per run [ms] | CPU time per run [ms] | wall [s] | first call [s] |")
-    L.append("|---|---|---|---|---|")
+             "Table 1 column, impact rule paper), rockjax `simulate_batch(..., "
+             "summary_only=True)` with its default settings (rk4, substeps 4), models "
+             "`simplified` and `rigid_body`, beside **the floor** (`benchmarks/floor.py`: "
+             "the same RK4 of the same `simplified` SDOF without event location or "
+             "impacts, plain JAX arrays of shape (N,) in one `lax.fori_loop`, sharded over "
+             "the devices the way `simulate_batch` is) and `benchmarks/numba_peer.py`, the "
+             "same algorithm as rockjax written by hand as a scalar loop per run with "
+             "`numba.prange` over the runs"
+             + (f" (numba {y['numba']})" if "numba" in y else " (numba not installed)")
+             + f". Measured {y['date']} by `python benchmarks/run.py --only yardstick`, all "
+             "variants in one process on the same inputs, compiled first, then interleaved; "
+             f"the best of {y['repeats']} rounds. **The machine is shared** with other jobs "
+             "(2 cores): the ratios, measured in the same rounds, mean more than the "
+             f"absolute times. A member-step is one RK4 step of one run ({y['member_steps']:,}"
+             " in all: 4,000 record intervals x 4 substeps x runs).\n")
+    L.append("| variant | per run [ms] | ns per member-step | CPU time per run [ms] | "
+             "wall [s] | first call [s] |")
+    L.append("|---|---|---|---|---|---|")
     for r in y["rows"]:
-        L.append(f"| {r['name']} | {r['per_run_ms']:.3f} | {r['cpu_per_run_ms']:.3f} | "
-                 f"{r['wall_s']:.2f} | {r['first_s']:.1f} |")
+        L.append(f"| {r['name']} | {r['per_run_ms']:.4f} | {r['ns_per_member_step']:.2f} | "
+                 f"{r['cpu_per_run_ms']:.4f} | {r['wall_s']:.2f} | {r['first_s']:.1f} |")
     L.append("\nCPU time is the process's, summed over its threads: the work done, less "
-             "sensitive than the wall time to other jobs on the machine.")
+             "sensitive than the wall time to other jobs on the machine.\n")
+    names = dict(simplified_over_floor="`simplified` / floor, all devices (target <= 2.5)",
+                 simplified_over_floor_one="`simplified` / floor, one device",
+                 numba_over_simplified="numba / `simplified`, all cores (target >= 4)",
+                 numba_over_simplified_one="numba / `simplified`, one core",
+                 rigid_body_over_simplified="`rigid_body` / `simplified`, all devices "
+                                            "(target <= 1.3)")
+    L.append("| ratio of times | measured |")
+    L.append("|---|---|")
+    for k, v in y["ratios"].items():
+        L.append(f"| {names.get(k, k)} | {v:.2f} |")
     a = y["accuracy"]
+    if a is not None:
+        L.append("")
+        L.append(f"Agreement of the {y['n']:,} runs (rockjax `simplified` on all devices "
+                 f"against numba): peak |u| within {a['max_peak_rel']:.1e} relative (median "
+                 f"{a['median_peak_rel']:.1e}); statuses differ in {a['status_mismatch']}, "
+                 f"impact counts in {a['impacts_mismatch']} runs (statuses: "
+                 + ", ".join(f"{STATUS_NAMES[int(k)]} {v:,}"
+                             for k, v in a["statuses"].items())
+                 + f"); overturning times within {a['max_t_overturn_diff']:.1e} s.")
     L.append("")
-    L.append(f"rockjax / numba: **{y['ratio']:.2f}x** at all cores ({y['devices']} devices "
-             f"against {y['threads']} threads), {y['ratio_one']:.2f}x on one core. Agreement "
-             f"of the {y['n']:,} runs (rockjax on all devices against numba): peak |u| "
-             f"within {a['max_peak_rel']:.1e} relative (median {a['median_peak_rel']:.1e}); "
-             f"statuses differ in {a['status_mismatch']}, impact counts in "
-             f"{a['impacts_mismatch']} runs (statuses: "
-             + ", ".join(f"{STATUS_NAMES[int(k)]} {v:,}"
-                         for k, v in a["statuses"].items())
-             + f"); overturning times within {a['max_t_overturn_diff']:.1e} s.\n")
     return L
 
 
@@ -593,7 +645,7 @@ def main(argv=None):
     grads = gradient_cost()
     print("(e) memory", flush=True)
     mem = memory(record)
-    print("(g) the numba yardstick", flush=True)
+    print("(g) the yardstick: floor, rockjax, numba", flush=True)
     yard = yardstick(s, gm, 1000 if args.quick else args.runs, args.repeats)
     pareto_plot(single + models, out / "pareto.png")
     write_markdown(out / "results.md", info, single, models, batch, batch_acc, grads, mem, ref,
@@ -608,7 +660,7 @@ def main(argv=None):
 
 def only_yardstick(out, s, gm, args):
     """`--only yardstick`: measure (g), keep the other sections from results.json."""
-    print("(g) the numba yardstick", flush=True)
+    print("(g) the yardstick: floor, rockjax, numba", flush=True)
     yard = yardstick(s, gm, args.runs, args.repeats)
     path = out / "results.json"
     if not path.is_file():

@@ -19,7 +19,12 @@ With `rk4` a large batch (`COMPACT_MIN` members or more) pays for the events onl
 they happen: one trial step for the whole batch, and the few members with an event in it
 (about 2 % on an earthquake record) take the pieces in a gathered sub-batch
 (`_compacted`), instead of every piece running for the whole batch whenever one member
-needs it (measured in `benchmarks/run.py --only yardstick`). Its rounds are a
+needs it (measured in `benchmarks/run.py --only yardstick`, beside the floor of
+`benchmarks/floor.py`: the same RK4 without events). The whole-batch trial computes the
+conditions at both ends without their rates (only the sub-batch locates roots), and the
+sub-batch is indexed by `first_members`, not `jnp.nonzero`. Events come in bursts: below
+lift-off the response is linear in the scale, so the members of a scale sweep cross
+u = 0 in the same step, and the sub-batch then takes several rounds. Its rounds are a
 `lax.while_loop`, so the compacted path is not reverse-differentiable; only
 `simulate_batch`, whose results are concrete arrays, runs batches that large (a
 differentiated `simulate`, also under `jax.vmap`, is a batch of one).
@@ -130,9 +135,13 @@ class Trial(eqx.Module):
     dg1: jnp.ndarray
 
 
-def trial(model, cfg, s, y, mode, tau, h, a0, da):
-    """A trial step of one member and its conditions (values and rates) at both ends."""
-    y1, err = rk_step(model, s, y, mode, tau, h, a0, da, cfg)
+def trial(model, cfg, s, y, mode, tau, h, a0, da, y1=None):
+    """A trial step of one member and its conditions (values and rates) at both ends
+    (`y1`: its end, when known already: rk4 only)."""
+    if y1 is None:
+        y1, err = rk_step(model, s, y, mode, tau, h, a0, da, cfg)
+    else:
+        err = jnp.zeros((), y.dtype)
     a_s, a_e = a0 + da * tau, a0 + da * (tau + h)
     g0, dg0 = _conditions_and_rates(model, s, y, mode, a_s, da,
                                     model.vector_field(s, y, mode, a_s))
@@ -193,12 +202,17 @@ def _accept(cfg, st, tr, h, active):
     return err <= 1.0, jnp.where(active, h * fac, st.hprop)
 
 
-def piece(model, cfg, s, r, st, tau, L, t_start, a0, da):
-    """Advance every active member by one piece: a trial step, then its first event."""
+def piece(model, cfg, s, r, st, tau, L, t_start, a0, da, y1=None):
+    """Advance every active member by one piece: a trial step, then its first event.
+    `y1`: the trial step's end when it is known already (rk4, the first piece of a step)."""
     active = ~st.tally.done & (tau < L)
     rest_len = L - tau
     h = _step_size(cfg, st, active, rest_len)
-    tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da)
+    if y1 is None:
+        tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da)
+    else:
+        tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da,
+                                                             y1)
     accept, hprop = _accept(cfg, st, tr, h, active)
     fire = fired(tr) & (active & accept)[:, None]
     hit = jnp.any(fire, axis=-1)
@@ -270,6 +284,44 @@ def _take(x, idx, n):
     return jnp.take(x, idx, axis=0, mode="clip") if jnp.ndim(x) and x.shape[0] == n else x
 
 
+#: bits per word of `first_members`' bit mask
+_WORD = 32
+
+
+def first_members(mask, width):
+    """The indices of the first `width` True entries of the 1-D `mask`, in order (the
+    rest filled with len(mask)): `jnp.nonzero(mask, size=width, fill_value=len(mask))[0]`
+    at a fifth of its cost on a CPU, where `nonzero`'s cumulative sum over the whole
+    batch is a long chain of small operations.
+
+    The mask is packed into 32-bit words; a word's rank is the count of set bits before
+    it (a triangular product of the words' bit counts); each output slot finds its word
+    by comparison and its bit within the word by a binary search on bit counts."""
+    n = mask.shape[0]
+    nw = -(-n // _WORD)
+    bits = jnp.pad(mask, (0, nw * _WORD - n)).reshape(nw, _WORD).astype(jnp.uint32)
+    words = jnp.sum(bits << jnp.arange(_WORD, dtype=jnp.uint32), axis=1, dtype=jnp.uint32)
+    cnt = jax.lax.population_count(words).astype(jnp.float32)
+    if nw <= 512:  # set bits before each word (exact in float32 below 2**24 members)
+        before = (cnt @ jnp.triu(jnp.ones((nw, nw), jnp.float32), 1)).astype(jnp.int32)
+    else:  # a large chunk: the product would grow as nw**2
+        before = (jnp.cumsum(cnt) - cnt).astype(jnp.int32)
+    slot = jnp.arange(width, dtype=jnp.int32)
+    upto = before + cnt.astype(jnp.int32)  # set bits up to and including each word
+    w = jnp.sum((upto[None, :] <= slot[:, None]).astype(jnp.int32), axis=1)
+    found = w < nw
+    w = jnp.minimum(w, nw - 1)
+    word, k = words[w], slot - before[w]  # the slot is the k-th set bit of its word
+    pos = jnp.zeros_like(slot)
+    step = _WORD // 2
+    while step:
+        low = (jnp.uint32(1) << (pos + step).astype(jnp.uint32)) - jnp.uint32(1)
+        pos = jnp.where(jax.lax.population_count(word & low).astype(jnp.int32) <= k,
+                        pos + step, pos)
+        step //= 2
+    return jnp.where(found, w * _WORD + pos, n)
+
+
 def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     """rk4 over one step: one trial step for the whole batch; the members it takes to the
     end of the step without an event are done (the common case), the others (an event, a
@@ -280,7 +332,12 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     da = (a1 - a0) / L
     tau = jnp.zeros_like(a0)
     active = ~st.tally.done & (tau < L)
-    tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, L - tau, a0, da)
+    # the trial step of the whole batch: its end and the conditions at both ends (their
+    # rates, for locating a root, only in the sub-batch of the members with an event)
+    y1, _ = per_member(lambda *a: rk_step(model, *a, cfg), s)(st.y, st.mode, tau, L - tau, a0, da)
+    g0 = per_member(model.conditions, s)(st.y, st.mode, a0 + da * tau)
+    g1 = per_member(model.conditions, s)(y1, st.mode, a0 + da * (tau + (L - tau)))
+    tr = Trial(y1, None, g0, None, g1, None)
     ok = jnp.all(jnp.isfinite(tr.y1), axis=-1)
     easy = active & ok & ~jnp.any(fired(tr), axis=-1)
     hard = active & ~easy
@@ -298,18 +355,20 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
 
     def rounds(carry):  # up to `width` members with events at a time (usually one round)
         st, todo = carry
-        idx = jnp.nonzero(todo, size=width, fill_value=n)[0]
+        idx = first_members(todo, width)
         # t_start is per member when the members have their own grid steps
-        s_, r_, st_, a0_, a1_, L_, t_ = jax.tree_util.tree_map(
-            lambda x: _take(x, idx, n), (s, r, st, a0, a1, L, t_start))
-        out = substep(model, cfg, s_, r_, st_, t_, L_, a0_, a1_, compact=False)
+        s_, r_, st_, a0_, a1_, L_, t_, y1_ = jax.tree_util.tree_map(
+            lambda x: _take(x, idx, n), (s, r, st, a0, a1, L, t_start, y1))
+        # every member of a round starts the step here: its first piece continues from
+        # the whole-batch trial step (not integrated again)
+        out = substep(model, cfg, s_, r_, st_, t_, L_, a0_, a1_, compact=False, y1=y1_)
         st = jax.tree_util.tree_map(lambda x, y: x.at[idx].set(y, mode="drop"), st, out)
         return st, todo.at[idx].set(False, mode="drop")
 
     return jax.lax.while_loop(lambda c: jnp.any(c[1]), rounds, (st, hard))[0]
 
 
-def substep(model, cfg, s, r, st, t_start, L, a0, a1, compact=True):
+def substep(model, cfg, s, r, st, t_start, L, a0, a1, compact=True, y1=None):
     """Advance every member over [t_start, t_start + L] [s], the ground acceleration
     linear from a0 to a1 [m/s²]. With rk4 a large batch (`COMPACT_MIN` members) takes its
     events in a compacted sub-batch (`_compacted`; `compact=False` turns this off)."""
@@ -330,7 +389,11 @@ def substep(model, cfg, s, r, st, t_start, L, a0, a1, compact=True):
         def one(x, _):
             return jax.lax.cond(needed(x), go, lambda x: x, x), None
 
-        (st, tau), _ = jax.lax.scan(one, (st, tau), None, length=cfg.max_pieces)
+        pieces = cfg.max_pieces
+        if y1 is not None:  # the first piece's trial step is known (the sub-batch's)
+            st, tau = piece(model, cfg, s, r, st, tau, L, t_start, a0, da, y1)
+            pieces -= 1
+        (st, tau), _ = jax.lax.scan(one, (st, tau), None, length=pieces)
         return jax.lax.cond(needed((st, tau)),
                             lambda st: _finish(model, cfg, s, st, tau, L, a0, da),
                             lambda st: st, st)

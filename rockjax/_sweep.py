@@ -573,6 +573,8 @@ def _store_parameters(structs, s_labels, recs, labs, sc, model, tail, t1, option
         "model": model if isinstance(model, str) else repr(model),
         "tail": tail, "t1": t1,
         **{k: v for k, v in sorted(options.items()) if k not in _HOW},
+        **({"record_steps": options["execution"].record_steps}  # the one that may change bits
+           if options.get("execution") is not None else {}),
         "chunk_runs": runs})
 
 

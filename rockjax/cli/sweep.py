@@ -80,7 +80,9 @@ def add_parser(subparsers):
         "differ in time step and length: they run on their common step, each resampled "
         "exactly, and each run ends at its own record's end plus --tail. With --distributed "
         "(or --coordinator, --num-processes, --process-id) the runs are split over several "
-        "jax.distributed processes or machines and process 0 writes the outputs.",
+        "jax.distributed processes or machines and process 0 writes the outputs. With "
+        "--store the runs go, as they finish, into a Zarr store instead (each process writing "
+        "its own chunks), which the same command run again resumes after an interruption.",
     )
     add_input_arguments(w)
     add_run_arguments(w)

@@ -79,7 +79,7 @@ from ._structure import (
     mcmanus_column as mcmanus_column,
     RockingStructure as RockingStructure,
 )
-from ._sweep import sweep as sweep, SweepResult as SweepResult
+from ._sweep import sweep as sweep, sweep_store as sweep_store, SweepResult as SweepResult
 from ._units import UnitError as UnitError, UNITS as UNITS
 from .models import (
     AbstractRestoringForce as AbstractRestoringForce,

@@ -8,21 +8,28 @@ Over several `jax.distributed` processes (`processes=rockjax.Processes.current()
 process runs a contiguous block of the runs and every process ends with the whole result.
 The status counting (the fraction overturned among the runs that completed or overturned,
 the failed runs per scale) is written here once.
+
+`rockjax.sweep_store` (and `sweep(..., store=path)`) runs structures x records x scales
+chunk by chunk instead, each chunk (every record at a block of scales, one structure) one
+`simulate_batch` call written at once into a Zarr store (`_store`): memory bounded by a
+chunk, and a rerun skips the chunks already written.
 """
 
 from __future__ import annotations
 
 import csv
 import dataclasses
+import importlib.metadata
 import os
 import pathlib
+import sys
 import time
 
 import numpy as np
 
 from ._batch import DEFAULT_TAIL, simulate_batch
 from ._checks import check_one_structure, check_scales
-from ._config import ensure_x64
+from ._config import ensure_x64, stack_versions
 from ._distributed import Processes
 from ._errors import ParameterError
 from ._excitation import GroundMotion
@@ -30,6 +37,15 @@ from ._fidelity import warn_sdof_lift_off
 from ._records import common_time_step, G_STANDARD, read_record, Record
 from ._report import model_info, model_line, record_info, status_line
 from ._status import STATUS, STATUS_NAMES
+from ._store import (
+    array_sha256,
+    DEFAULT_CHUNK_RUNS,
+    jsonable,
+    open_dataset,
+    scale_chunk,
+    SweepStore,
+    VARIABLES,
+)
 from ._structure import RockingStructure
 from .models import get_model
 
@@ -47,6 +63,12 @@ CSV_COLUMNS = ("structure", "record", "scale", "peak_u_m", "peak_uplift_m", "n_i
 _VECTOR = 8
 #: simulate_batch arguments that `sweep` sets itself
 _SET_BY_SWEEP = ("scale", "record", "summary_only", "ts", "excitation", "structure", "u0", "v0")
+#: simulate_batch arguments that change how a sweep runs, not its results: a rerun into a
+#: store may change them (the others must be the stored ones)
+_HOW = ("progress", "devices", "chunk_size", "execution", "fidelity_warning")
+#: called after each chunk written to a store, with (structure, chunk): tests interrupt
+#: a sweep here
+_AFTER_CHUNK = None
 
 
 def overturned_fraction(status, axis=-1):
@@ -279,21 +301,26 @@ def status_totals(results) -> dict[str, int]:
     return {k: sum(r.status_counts()[k] for r in results) for k in STATUS}
 
 
-def report_sweeps(results, labels, *, wall_time=None, processes=1, inputs=True) -> str:
+def report_sweeps(results, labels, *, wall_time=None, processes=1, inputs=True,
+                  runs_run=None) -> str:
     """`SweepResult.report` of sweeps of the same records and scales over several
     structures (`labels` their names, one column each); `wall_time` [s] (default: the
-    sweeps' sum) and `processes` for the time line; `inputs`: begin with `report_inputs`."""
+    sweeps' sum), `runs_run` (default: every run; fewer when a store was resumed) and
+    `processes` for the time line; `inputs`: begin with `report_inputs`."""
     first, n_s, counts = results[0], results[0].n_scales, status_totals(results)
     n_runs = sum(r.n_runs for r in results)
     wall = sum(r.wall_time for r in results) if wall_time is None else wall_time
     failed = {k: v for k, v in counts.items() if STATUS[k] not in USABLE and v}
     n_over, n_used = counts["overturned"], n_runs - sum(failed.values())
     procs = f", {processes} processes" if processes > 1 else ""
-    rate = f"{n_runs / wall:.3g}" if wall > 0 else "-"
+    ran = n_runs if runs_run is None else runs_run
+    rate = f"{ran / wall:.3g}" if wall > 0 else "-"
+    resumed = "" if ran == n_runs else f", {ran} runs run now, the others found done"
     lines = [first.report_inputs()] if inputs else []
     lines += [f"sweep         {n_runs} run{'s' if n_runs != 1 else ''}: {len(results)} "
               f"structure(s) x {first.n_records} record(s) x {n_s} scale(s)",
-              f"time          {wall:.3g} s ({rate} runs/s, compilation included{procs})",
+              f"time          {wall:.3g} s ({rate} runs/s, compilation included{procs}"
+              f"{resumed})",
               f"status        {status_line(counts)}"]
     share = f"{n_over / n_used:.1%}" if n_used else "-"
     if failed:
@@ -361,7 +388,8 @@ def _as_records(records, labels):
 
 
 def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, t1=None,
-          labels=None, processes=None, **options) -> SweepResult:
+          labels=None, processes=None, store=None, chunk_runs=None,
+          **options) -> SweepResult:
     """Every record at every scale factor: `rockjax.simulate_batch(summary_only=True)`.
 
     **Arguments:** `structure`, one `RockingStructure`; `records`, a sequence of
@@ -375,7 +403,10 @@ def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, 
     `max_impacts`, `progress`, `devices`, `fidelity_warning`, ...); `processes`: a
     `rockjax.Processes` (default: this process alone) to split the runs over
     `jax.distributed` processes, each running a contiguous block, every one returning the
-    whole result (`Processes.current()` once `jax.distributed.initialize` has run).
+    whole result (`Processes.current()` once `jax.distributed.initialize` has run);
+    `store`: a path, to write the runs as they go into a Zarr store that a rerun resumes
+    (`rockjax.sweep_store`, one structure; `chunk_runs` runs per chunk), the result then
+    read back from it.
 
     **Returns:** a `SweepResult`, arrays of shape (n_records, n_scales).
 
@@ -386,11 +417,20 @@ def sweep(structure, records, scales, *, model="simplified", tail=DEFAULT_TAIL, 
     check_one_structure(structure, "sweep one structure at a time")
     recs, labs = _as_records(records, labels)
     sc = check_scales(scales)
-    clash = [k for k in options if k in _SET_BY_SWEEP]
-    if clash:
-        raise TypeError(f"sweep sets {', '.join(clash)} itself (every record at every scale, "
-                        "summaries only); use simulate_batch for other batches")
+    _check_options(options)
     t0 = time.perf_counter()
+    if store is not None:
+        sweep_store(store, [structure], recs, sc, model=model, tail=tail, t1=t1,
+                    labels=labs, processes=processes, chunk_runs=chunk_runs,
+                    **{**options, "fidelity_warning": False})
+        res = read_result(store, 0, structure, recs, labs, model=model, tail=tail, t1=t1,
+                          options=options, wall_time=time.perf_counter() - t0)
+        warn_sdof_lift_off(get_model(model, options.get("impact", "paper")), structure, True,
+                           res.peak_u.ravel(), options.get("fidelity_warning", True), 3)
+        return res
+    if chunk_runs is not None:
+        raise ParameterError("chunk_runs: applies to a sweep written to a store (store=)",
+                             param="chunk_runs")
     fields = _run(structure, recs, sc, t1, tail, model, options,
                   Processes() if processes is None else processes)
     return SweepResult(structure=structure, records=recs, labels=labs, scales=sc, model=model,
@@ -426,3 +466,238 @@ def _run(structure, records, scales, t1, tail, model, options, processes):
     warn_sdof_lift_off(get_model(model, options.get("impact", "paper")), structure, True,
                        fields["peak_u"].ravel(), options.get("fidelity_warning", True), 4)
     return fields
+
+
+def _check_options(options):
+    """Refuse the simulate_batch arguments that a sweep sets itself."""
+    clash = [k for k in options if k in _SET_BY_SWEEP]
+    if clash:
+        raise TypeError(f"sweep sets {', '.join(clash)} itself (every record at every scale, "
+                        "summaries only); use simulate_batch for other batches")
+
+
+# ---------------------------------------------------------------------------- the store
+def sweep_store(path, structures, records, scales, *, structure_labels=None,
+                model="simplified", tail=DEFAULT_TAIL, t1=None, labels=None, processes=None,
+                chunk_runs=None, provenance=None, **options):
+    """Every structure x record x scale, written into a Zarr store at `path` chunk by
+    chunk as the runs go (never the whole result in memory); a rerun of the same sweep
+    resumes where it stopped and ends with the store of an uninterrupted run.
+
+    **Arguments:** `path` of the store (a folder, e.g. `"sweep.zarr"`); `structures`, one
+    `RockingStructure` or a sequence of them, labelled `structure_labels` (default
+    "structure 0", "structure 1", ...; "structure" for one); `records`, `scales`, `model`,
+    `tail`, `t1`, `labels`, `processes` and `**options` as `rockjax.sweep`; `chunk_runs`
+    (default 8,192): about that many runs per chunk, every record at a block of scales of
+    one structure, one `simulate_batch` call each; `provenance`: a dict of attributes to
+    add (the command line puts its `command` there). `progress` (an option): a bar of the
+    runs done and the time left (default: when stderr is a terminal). With `processes`
+    each `jax.distributed` process runs and writes its share of the chunks (process 0
+    creates the store; a shared file system for several machines).
+
+    **Store:** variables `peak_u` [m], `peak_uplift` [m], `n_impacts`, `status` (int8,
+    -1 not run yet; `flag_values`/`flag_meanings`), `t_overturn` [s], `t_end` [s] on
+    (structure, record, scale), each with `units`; `done` (structure, scale); the record
+    coordinates `record_file`, `record_sha256`, `record_dt` [s], `record_npts`,
+    `record_pga` [g]; attributes: the rockjax and JAX versions, the command, the model,
+    the integrator's settings, the records and structures, and `parameters`, which a
+    rerun must repeat: one that differs (the model, a record's samples, the scales, ...)
+    is refused with a `ParameterError` naming it.
+
+    **Returns:** the store as an `xarray.Dataset`, lazy (nothing read until used).
+
+    **Example:** `ds = rockjax.sweep_store("sweep.zarr", [s1, s2], ["IELC180.AT2"],
+    np.linspace(0.1, 2.0, 5_000), model="rigid_body")`, then
+    `ds.status.isel(structure=0)` or `(ds.status == 1).mean("record")`.
+    """
+    ensure_x64()
+    structs, s_labels = _as_structures(structures, structure_labels)
+    recs, labs = _as_records(records, labels)
+    sc = check_scales(scales)
+    _check_options(options)
+    procs = Processes() if processes is None else processes
+    chunk = scale_chunk(len(recs), sc.size,
+                        DEFAULT_CHUNK_RUNS if chunk_runs is None else chunk_runs)
+    params = _store_parameters(structs, s_labels, recs, labs, sc, model, tail, t1, options,
+                               DEFAULT_CHUNK_RUNS if chunk_runs is None else chunk_runs)
+    attrs = _store_provenance(structs, s_labels, recs, labs, model, tail, t1, options,
+                              provenance)
+    st = _open_store(path, _store_coords(s_labels, labs, recs, sc), params, attrs, chunk,
+                     procs)
+    _run_store(st, structs, recs, sc, t1, tail, model, options, procs)
+    if options.get("fidelity_warning", True):
+        law = get_model(model, options.get("impact", "paper"))
+        for i, s in enumerate(structs):
+            warn_sdof_lift_off(law, s, True, np.ravel(st.group["peak_u"][i]), True, 3)
+    return open_dataset(st.path)
+
+
+def _as_structures(structures, labels):
+    """(structures, labels) of one RockingStructure or a sequence of them."""
+    items = [structures] if isinstance(structures, RockingStructure) else list(structures)
+    if not items:
+        raise ParameterError("structures: the sequence is empty", param="structure")
+    for s in items:
+        check_one_structure(s, "give a sequence of structures")
+    if labels is None:
+        labels = ["structure"] if len(items) == 1 else [f"structure {i}"
+                                                        for i in range(len(items))]
+    labels = [str(x) for x in labels]
+    if len(labels) != len(items) or len(set(labels)) != len(labels):
+        raise ParameterError(f"structure_labels: {len(labels)} labels for {len(items)} "
+                             "structures, each label once", param="structure_labels")
+    return items, labels
+
+
+def _version():
+    try:
+        return importlib.metadata.version("rockjax")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
+
+
+def _record_sha(rec):
+    """The SHA-256 of the samples a record runs with (float64), its dt and scale."""
+    return array_sha256(rec.accel, [float(rec.dt), float(np.asarray(getattr(rec, "scale",
+                                                                              1.0)))])
+
+
+def _store_parameters(structs, s_labels, recs, labs, sc, model, tail, t1, options, runs):
+    """What a rerun into the store must repeat, as JSON: every input of the results."""
+    return jsonable({
+        "rockjax_version": _version(),
+        "structure": {lab: s.to_dict() for lab, s in zip(s_labels, structs)},
+        "records": [{"label": lab, "sha256": _record_sha(r)} for lab, r in zip(labs, recs)],
+        "scales": {"n": int(sc.size), "first": float(sc[0]), "last": float(sc[-1]),
+                   "sha256": array_sha256(sc)},
+        "model": model if isinstance(model, str) else repr(model),
+        "tail": tail, "t1": t1,
+        **{k: v for k, v in sorted(options.items()) if k not in _HOW},
+        **({"record_steps": options["execution"].record_steps}  # the one that may change bits
+           if options.get("execution") is not None else {}),
+        "chunk_runs": runs})
+
+
+def _store_provenance(structs, s_labels, recs, labs, model, tail, t1, options, extra):
+    """The store's descriptive attributes (written once, when it is created)."""
+    name = model if isinstance(model, str) else type(model).__name__
+    info = []
+    for lab, rec in zip(labs, recs):
+        i = record_info(rec)
+        info.append({"label": lab, "sha256": _record_sha(rec),
+                     **{k: v for k, v in i.items() if k not in ("scale", "scaled_pga_g")}})
+    return jsonable({
+        "title": "rockjax sweep: summaries of every structure x record x scale",
+        "rockjax_version": _version(), "software": f"rockjax {_version()}, {stack_versions()}"
+        f", zarr {importlib.metadata.version('zarr')}, Python {sys.version.split()[0]}",
+        "command": "rockjax.sweep_store (Python)", **(extra or {}),
+        "model": model_info(name, options.get("impact", "paper"), options.get("r")),
+        "integrator": {k: v for k, v in sorted(options.items()) if k not in _HOW},
+        "tail_s": tail, "t1_s": t1, "grid_dt_s": common_time_step([float(r.dt) for r in recs]),
+        "records": info,
+        "structures": {lab: s.to_dict() for lab, s in zip(s_labels, structs)},
+        "structure_units": "SI (m, kg, N/m, s)",
+        "run_order": "chunks of every record at a block of scales of one structure, one "
+        "simulate_batch(summary_only=True) call each"})
+
+
+def _store_coords(s_labels, labs, recs, sc):
+    """The store's coordinates and per-record variables."""
+    infos = [record_info(r) for r in recs]
+    return {"structure": list(s_labels), "record": list(labs), "scale": sc, "per_record": {
+        "record_file": ([i["file"] for i in infos], {"long_name": "file read"}),
+        "record_sha256": ([_record_sha(r) for r in recs], {
+            "long_name": "SHA-256 of the samples run (float64), dt and scale"}),
+        "record_dt": ([i["dt_s"] for i in infos], {"units": "s", "long_name": "time step"}),
+        "record_npts": ([i["n_points"] for i in infos], {"units": "1",
+                                                          "long_name": "samples"}),
+        "record_pga": ([i["pga_g"] for i in infos], {
+            "units": "g", "long_name": "peak ground acceleration at scale 1"})}}
+
+
+def _barrier(procs, error=None):
+    """Every process waits for the others; `error` raised on its process, a ProcessError
+    naming it on the others."""
+    procs.gather(np.array([[0.0 if error is None else 1.0]]), procs.count, error)
+
+
+def _open_store(path, coords, params, attrs, chunk, procs):
+    """The store, created or checked by process 0, then opened by the others."""
+    st = error = None
+    if procs.index == 0:
+        try:
+            st = SweepStore.open(path, coords, params, attrs, chunk)
+        except Exception as e:  # noqa: BLE001 - raised again by the barrier
+            error = e
+    _barrier(procs, error)
+    return st or SweepStore.open(path, coords, params, attrs, chunk, create=False)
+
+
+def _quiet(options):
+    """(simulate_batch's options with no bar and no warning, the progress asked for)."""
+    opts = {**options, "fidelity_warning": False}
+    ex = opts.get("execution")
+    if ex is not None:
+        opts["execution"] = dataclasses.replace(ex, progress=False)
+        return opts, ex.progress
+    progress, opts["progress"] = opts.get("progress"), False
+    return opts, progress
+
+
+def _store_bar(st, procs, mine, n_r, progress):
+    """A bar of the runs done (those already in the store included) and the time left."""
+    if not (progress if progress is not None else sys.stderr.isatty()):
+        return None
+    from tqdm.auto import tqdm
+
+    todo = n_r * sum(hi - lo for lo, hi in (st.scales_of(c) for _, c in mine))
+    total = st.n_structures * n_r * st.n_scales if procs.count == 1 else todo
+    return tqdm(total=total, initial=total - todo, desc="sweep", unit="run",
+                file=sys.stderr, leave=False, dynamic_ncols=True)
+
+
+def _run_store(st, structs, recs, sc, t1, tail, model, options, procs):
+    """This process's share of the chunks not yet written, each run and written. Every
+    chunk pads to the same number of runs (a multiple of `_VECTOR`, the last run
+    repeated): one compiled program, and each run's bits those of the whole sweep."""
+    pending = st.pending()  # every process reads the same mask, after the barrier
+    lo, hi = procs.block(len(pending))
+    n_r, (batch, progress) = len(recs), _quiet(options)
+    size = -(-n_r * st.chunk // _VECTOR) * _VECTOR
+    bar, error = _store_bar(st, procs, pending[lo:hi], n_r, progress), None
+    try:
+        for s, c in pending[lo:hi]:
+            j0, j1 = st.scales_of(c)
+            n = (j1 - j0) * n_r
+            k = np.minimum(np.arange(size), n - 1)
+            out = simulate_batch(structs[s], list(recs), t1, tail=tail, scale=sc[j0 + k // n_r],
+                                 record=k % n_r, model=model, summary_only=True, **batch)
+            st.write(s, c, {f: np.asarray(getattr(out, f))[:n].reshape(j1 - j0, n_r).T
+                            for f in VARIABLES})
+            if bar is not None:
+                bar.update(n)
+            if _AFTER_CHUNK is not None:
+                _AFTER_CHUNK(s, c)
+    except Exception as e:  # noqa: BLE001 - raised again by the barrier, after the others know
+        error = e
+    finally:
+        if bar is not None:
+            bar.close()
+    _barrier(procs, error)
+
+
+def read_result(path, index, structure, records, labels, *, model="simplified",
+                tail=DEFAULT_TAIL, t1=None, options=None, wall_time=0.0) -> SweepResult:
+    """The `SweepResult` of structure `index` of the store at `path` (its arrays read,
+    n_records x n_scales), given the structure and records it ran; every run must be
+    done."""
+    st = SweepStore.open(path, create=False)
+    if not st.done()[index].all():
+        raise ParameterError(f"the store {path} holds unfinished runs of structure {index}; "
+                             "rerun the sweep to finish it", param="store")
+    fields = {f: np.asarray(st.group[f][index]) for f in SWEEP_FIELDS}
+    options = dict(options or {})
+    return SweepResult(structure=structure, records=tuple(records), labels=labels,
+                       scales=np.asarray(st.group["scale"][...]), model=model,
+                       impact=options.get("impact", "paper"), tail=tail, t1=t1,
+                       options=options, wall_time=wall_time, **fields)

@@ -144,6 +144,34 @@ def test_two_processes_write_what_one_writes(sweep_args, tmp_path):
     print(f"one process {t_one:.1f} s, two processes {t_two:.1f} s (wall, with start-up)")
 
 
+@pytest.mark.slow  # compile-bound, as the test above; CI runs it
+def test_two_processes_write_one_store(sweep_args, tmp_path):
+    """Two jax.distributed processes with --store: each writes its own chunks (one scale
+    of one structure each) into one store, which is one process's store: every file but
+    the attributes' command line byte for byte, and xarray's assert_identical."""
+    xr = pytest.importorskip("xarray")
+    one, two, two_1 = tmp_path / "one", tmp_path / "two", tmp_path / "two_1"
+    one.mkdir(), two.mkdir(), two_1.mkdir()
+    base = sweep_args[:-5] + ["--chunk-runs", "2", "--json", "--store"]
+    [(rc, out, err)] = _launch([base + [str(one / "s.zarr")]], [one])
+    assert rc == 0, err
+    port = _free_port()
+    results = _launch([base + [str(two / "s.zarr")] + _flags(port, 2, i) for i in range(2)],
+                      [two, two_1])
+    assert [r[0] for r in results] == [0, 0], _dump(results)
+    a, b = json.loads(out), json.loads(results[0][1])
+    assert a["status_counts"] == b["status_counts"] and b["processes"] == 2
+    files = [{str(f.relative_to(d / "s.zarr")): f.read_bytes()
+              for f in sorted((d / "s.zarr").rglob("*")) if f.is_file()} for d in (one, two)]
+    assert files[0].keys() == files[1].keys() and len(files[0]) > 20
+    assert [k for k in files[0] if files[0][k] != files[1][k]] == ["zarr.json"]
+    da, db = (xr.open_zarr(d / "s.zarr", consolidated=False).load() for d in (one, two))
+    assert "--process-id" in db.attrs["command"]
+    da.attrs["command"] = db.attrs["command"]
+    xr.testing.assert_identical(da, db)
+    assert not (two_1 / "s.zarr").exists()
+
+
 def _free_slurm_port():
     """A SLURM job id whose port (JAX: job id % 4096 + 61440) is free here, and the port."""
     for job in range(1000, 1000 + 4096):

@@ -57,6 +57,7 @@ def main(argv=None, *, compile_cache=None):
     `ROCKJAX_COMPILE_CACHE=off` turn it off in any case."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the command, for provenance
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_USAGE

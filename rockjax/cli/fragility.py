@@ -83,6 +83,7 @@ def add_parser(subparsers):
     add_outputs(w, "plot the fitted curve, its band and the observed fractions against the IM",
                 out="also write the sweep's CSV, one row per run (the columns of rockjax sweep)",
                 json="print one JSON object and nothing else (no progress bar)")
+    sweep.add_store_arguments(w)
     w.set_defaults(func=run)
     return w
 
@@ -120,12 +121,13 @@ def run(args):
         raise CLIError(f"--structure: one structure per fragility curve, got "
                        f"{len(args.structure)}")
     check_outputs(args)
+    sweep.check_store_arguments(args)
     if args.draws is not None:
         return _run_band(args)
     if args.draws_ignore is not None:
         raise CLIError("--draws-ignore: applies to --draws")
     sw = sweep.read_sweep(args)
-    sweep.run_batches(args, sw)
+    sweep.run_batches(args, sw, full=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         fit = rockjax.fragility(sw.results[0], im=args.im, limit=args.limit,
@@ -146,7 +148,8 @@ def run(args):
     if args.json:
         info = sweep.sweep_json(args, sw)
         print(json.dumps({"fragility": fit.to_dict(), "sweep": {k: info[k] for k in _SWEEP_KEYS},
-                          "plot": args.plot, "csv": args.out, "warnings": sw.warnings + notes}))
+                          "plot": args.plot, "csv": args.out, "store": args.store,
+                          "runs_found_done": sw.found, "warnings": sw.warnings + notes}))
     else:
         _print_report(args, sw, fit)
     return 0
@@ -154,8 +157,9 @@ def run(args):
 
 def _run_band(args):
     """--draws: `rockjax.fragility_band` over the draws: text, --json, --plot."""
-    if args.out:
-        raise CLIError("--out: the sweep's CSV is written without --draws only")
+    for option, value in (("--out", args.out), ("--store", args.store)):
+        if value:
+            raise CLIError(f"{option}: the sweep's results are written without --draws only")
     draws = read_draws_option(args)
     sw = sweep.read_sweep(args)
     with warnings.catch_warnings(record=True) as caught:
@@ -190,8 +194,10 @@ def _run_band(args):
 def _print_report(args, sw, fit):
     sweep.print_inputs(sw)
     print(f"sweep         {sw.runs}: {len(sw.rec_labels)} record(s) x {len(sw.scales)} scale(s), "
-          f"{sw.wall:.3g} s ({sw.n_runs / sw.wall:.3g} runs/s, compilation included)\n"
+          f"{sw.wall:.3g} s ({(sw.n_runs - sw.found) / sw.wall:.3g} runs/s, compilation "
+          f"included{f'; {sw.found} runs found done in the store' if sw.found else ''})\n"
           f"status        {status_line(status_totals(sw.results))}\n{fit.report()}")
+    sweep.print_store(args, sw)
     for what, path in (("results", args.out), ("plot", args.plot)):
         if path:
             print(f"{what} written to {path}")

@@ -4,7 +4,10 @@ Reads the structures and records (each record's units from its file, `FILE:UNITS
 `--units` after it), runs each structure through `rockjax.sweep` (the library's one batch
 engine; over several `jax.distributed` processes with `--distributed` or `--coordinator`,
 started by `_distributed`), writes the CSV (`rockjax._sweep.write_csv`), the plot
-(`_plotting.plot_sweeps`) and the report; process 0 writes them.
+(`_plotting.plot_sweeps`) and the report; process 0 writes them. With `--store` the runs
+go through `rockjax.sweep_store` instead: written chunk by chunk into a Zarr store as they
+go (each process its own chunks), a rerun of the command resuming it, and the report read
+back from the store one structure at a time.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import json
 import math
 import os
 import pathlib
+import shlex
 import sys
 import time
 
@@ -25,8 +29,9 @@ from rockjax._batch import DEFAULT_TAIL
 from rockjax._distributed import fingerprint
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
+from rockjax._store import runs_done
 from rockjax._suite import expand_folders, RecordFile, split_record_units, unique_labels
-from rockjax._sweep import report_sweeps, status_totals, write_csv
+from rockjax._sweep import read_result, report_sweeps, status_totals, write_csv
 
 from . import _distributed
 from ._common import (
@@ -58,7 +63,7 @@ from ._common import (
 #: the library parameters that the options of `rockjax sweep` set (errors name the option)
 FLAGS = {**COMMON_FLAGS, **RECORD_FLAGS, "scale": "--scales", "scales": "--scales",
          "tail": "--tail", "structure": "--structure", "records": "--record",
-         "coordinator": "--coordinator"}
+         "coordinator": "--coordinator", "store": "--store", "chunk_runs": "--chunk-runs"}
 
 
 # ------------------------------------------------------------------------------ parser
@@ -75,16 +80,34 @@ def add_parser(subparsers):
         "differ in time step and length: they run on their common step, each resampled "
         "exactly, and each run ends at its own record's end plus --tail. With --distributed "
         "(or --coordinator, --num-processes, --process-id) the runs are split over several "
-        "jax.distributed processes or machines and process 0 writes the outputs.",
+        "jax.distributed processes or machines and process 0 writes the outputs. With "
+        "--store the runs go, as they finish, into a Zarr store instead (each process writing "
+        "its own chunks), which the same command run again resumes after an interruption.",
     )
     add_input_arguments(w)
     add_run_arguments(w)
     add_outputs(w, "plot peak |u| and the fraction overturned against the scale",
-                out="CSV of the summaries (default ./sweep.csv)", out_default="sweep.csv",
+                out="CSV of the summaries, one row per run (default ./sweep.csv; with "
+                "--store only when given)",
                 json="print one JSON object and nothing else (no progress bar)")
+    add_store_arguments(w)
     _distributed.add_distributed_arguments(w)
     w.set_defaults(func=run)
     return w
+
+
+def add_store_arguments(w):
+    """--store PATH.zarr and --chunk-runs N (also `rockjax fragility`'s)."""
+    w.add_argument(
+        "--store", metavar="PATH.zarr",
+        help="write the results as they go, chunk by chunk, into a Zarr store (a folder) of "
+        "labelled arrays on (structure, record, scale), with units and provenance (read it "
+        "with xarray.open_zarr); memory stays bounded by a chunk, and rerunning the same "
+        "command resumes an interrupted sweep where it stopped (other arguments into the "
+        "same store are refused). Needs pip install \"rockjax[store]\"")
+    w.add_argument("--chunk-runs", type=positive_int("--chunk-runs"), metavar="N",
+                   help="with --store: about N runs per chunk, each written at once (default "
+                   "8192; every record at a block of scales of one structure)")
 
 
 class _InOrder(argparse.Action):
@@ -213,6 +236,7 @@ class Sweep:
     t1: float | None
     skipped: dict = dataclasses.field(default_factory=dict)
     processes: int = 1
+    found: int = 0  # --store: the runs found done there (a resumed sweep)
     results: list = dataclasses.field(default_factory=list)
     warnings: list[str] = dataclasses.field(default_factory=list)
     wall: float = 0.0
@@ -249,10 +273,14 @@ def read_sweep(args):
     return sweep
 
 
-def run_batches(args, sweep, cluster=None):
+def run_batches(args, sweep, cluster=None, full=False):
     """`rockjax.sweep` of each structure, its runs split over the processes of `cluster`
-    (default: this one); fills sweep.results and sweep.warnings."""
+    (default: this one); fills sweep.results and sweep.warnings. With --store:
+    `_run_store` (`full`: keep each structure's whole result, as `rockjax fragility`
+    needs)."""
     cluster = cluster or _distributed.Cluster()
+    if getattr(args, "store", None):
+        return _run_store(args, sweep, cluster, full)
     t0 = time.perf_counter()
     quiet = args.json or cluster.index > 0
     for s in sweep.structures:
@@ -270,6 +298,72 @@ def run_batches(args, sweep, cluster=None):
                 print(f"warning: {note}", file=sys.stderr)
     sweep.wall = time.perf_counter() - t0
     sweep.processes = cluster.count
+
+
+def _run_store(args, sweep, cluster, full):
+    """`rockjax.sweep_store` of every structure into --store (each process writes its own
+    chunks; a rerun skips those done), then on process 0 each structure's result read
+    back in turn: kept whole for `full`, --out or --plot, else only its totals
+    (`_Totals`), so that memory stays bounded by one structure's runs."""
+    t0, quiet = time.perf_counter(), args.json or cluster.index > 0
+    sweep.found = runs_done(args.store) if cluster.index == 0 else 0
+    options = {"r": args.r, "impact": args.impact, "method": args.method,
+               "substeps": args.substeps}
+    command = shlex.join(["rockjax", *getattr(args, "argv", [args.command])])
+    with cluster.collective():
+        rockjax.sweep_store(
+            args.store, sweep.structures, sweep.records, sweep.scales,
+            structure_labels=sweep.struct_labels, labels=sweep.rec_labels, model=args.model,
+            tail=sweep.tail, t1=sweep.t1, processes=cluster, chunk_runs=args.chunk_runs,
+            provenance={"command": command}, progress=False if quiet else None,
+            fidelity_warning=False, **options)
+    sweep.wall, sweep.processes = time.perf_counter() - t0, cluster.count
+    if cluster.index != 0:
+        return
+    keep = full or args.out or args.plot
+    for i, s in enumerate(sweep.structures):
+        res = read_result(args.store, i, s, sweep.records, sweep.rec_labels, model=args.model,
+                          tail=sweep.tail, t1=sweep.t1, options=options)
+        sweep.results.append(res if keep else _Totals(res))
+        note = fidelity_note(args, s, True, res.peak_u.ravel())
+        if note and note not in sweep.warnings:
+            sweep.warnings.append(note)
+            print(f"warning: {note}", file=sys.stderr)
+
+
+class _Totals:
+    """What the report keeps of one structure's `SweepResult` read back from a store: its
+    counts, its columns per scale and its inputs, not its per-run arrays."""
+
+    def __init__(self, res):
+        self.n_runs, self.n_records, self.n_scales = res.n_runs, res.n_records, res.n_scales
+        self.scales, self.wall_time, self.grid_dt = res.scales, res.wall_time, res.grid_dt
+        self._counts, self._fraction = res.status_counts(), res.fraction_overturned()
+        self._failed, self._inputs = res.failed_by_scale(), res.report_inputs()
+        self._info = res.record_info()
+
+    def status_counts(self):
+        return self._counts
+
+    def fraction_overturned(self):
+        return self._fraction
+
+    def failed_by_scale(self):
+        return self._failed
+
+    def report_inputs(self):
+        return self._inputs
+
+    def record_info(self):
+        return self._info
+
+
+def check_store_arguments(args):
+    """--chunk-runs needs --store; a --store path that is a file is refused."""
+    if args.chunk_runs is not None and not args.store:
+        raise CLIError("--chunk-runs: applies with --store")
+    if args.store and pathlib.Path(args.store).is_file():
+        raise CLIError(f"--store is a file: {args.store} (a store is a folder)")
 
 
 def _load_sweep(args, cluster):
@@ -300,7 +394,9 @@ def sweep_json(args, sweep):
         "runs_per_s": n_runs / wall if wall > 0 else None, "processes": sweep.processes,
         "tail_s": sweep.tail, "t1": sweep.t1, "grid_dt_s": first.grid_dt, "model": args.model,
         "model_info": model_info(args), "method": args.method,
-        "substeps": args.substeps if args.method == "rk4" else None, "csv": str(args.out),
+        "substeps": args.substeps if args.method == "rk4" else None,
+        "csv": None if args.out is None else str(args.out),
+        "store": getattr(args, "store", None), "runs_found_done": sweep.found,
         "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
         "record_info": first.record_info(), "skipped_files": sweep.skipped,
         "scales": [float(x) for x in sweep.scales],
@@ -322,9 +418,20 @@ def print_inputs(sweep):
     print(sweep.results[0].report_inputs())
 
 
+def print_store(args, sweep):
+    """--store: where the results are, and how many runs a resumed sweep found done."""
+    if args.store:
+        found = f"; {sweep.found} of them found done and skipped" if sweep.found else ""
+        print(f"store         {args.store}: {sweep.n_runs} runs on (structure, record, scale)"
+              f"{found}; xarray.open_zarr({str(args.store)!r})")
+
+
 def run(args):
     """structures x scales x records through `rockjax.sweep`: CSV, plot; over several
     jax.distributed processes when asked (process 0 writes)."""
+    check_store_arguments(args)
+    if args.out is None and not args.store:
+        args.out = "sweep.csv"
     check_outputs(args)
     cluster = _distributed.start(args)
     try:
@@ -343,7 +450,8 @@ def run(args):
         cluster.stop()
     if cluster.index != 0:
         return 0
-    write_csv(args.out, sweep.results, sweep.struct_labels)
+    if args.out:
+        write_csv(args.out, sweep.results, sweep.struct_labels)
     if args.plot:
         end = "its end + tail" if args.t1 is None else f"min(end + tail, {args.t1:g} s)"
         save(plot_sweeps(sweep.results, sweep.struct_labels, title=f"{sweep.runs}, each record "
@@ -354,8 +462,11 @@ def run(args):
         return 0
     print_inputs(sweep)
     print(report_sweeps(sweep.results, sweep.struct_labels, wall_time=sweep.wall,
-                        processes=sweep.processes, inputs=False))
-    print(f"results written to {args.out}")
+                        processes=sweep.processes, inputs=False,
+                        runs_run=sweep.n_runs - sweep.found))
+    print_store(args, sweep)
+    if args.out:
+        print(f"results written to {args.out}")
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

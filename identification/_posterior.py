@@ -4,8 +4,12 @@ Any fit that hands over a `PosteriorProblem` (`identification._bayes`; a decay f
 `FitResult.posterior_problem`, `identification._posterior_decay`) is sampled here with the
 No-U-Turn sampler of blackjax (`blackjax.nuts`, its step size and diagonal mass matrix
 tuned during warmup as `blackjax.window_adaptation` does: Stan's windows, dual averaging
-of the step size), several chains run together (`jax.vmap` over the chains: one compiled
-program, `_chunk`, for the warmup and the draws, reused by any problem of the same shapes).
+of the step size), several chains run together (`jax.vmap` over the chains, or one after
+another and split over the CPU devices when the problem says so,
+`PosteriorProblem.chains_together`: one compiled program, `_chunk`, for the warmup and the
+draws, reused by any problem of the same shapes). Chains run one after another build
+their trajectories in loops of static length (`_static_loops`): the same transitions,
+with the gradient about 6 times cheaper on the CPU.
 
 **Whitening.** The chains run in $w$, with $z = z^* + L w$ and $L L^T$ the fit's Laplace
 covariance in $z$ (`PosteriorProblem.cov0`): where the Laplace approximation holds, the
@@ -45,6 +49,9 @@ ESS_MIN = 400
 4 chains); with fewer draws in all, `ess_threshold` lowers it."""
 TARGET_ACCEPTANCE = 0.8
 """The mean acceptance rate the step size is tuned to (dual averaging, during warmup)."""
+MAX_DOUBLINGS = 10
+"""The most trajectory doublings of a NUTS transition (blackjax's and Stan's default: at
+most 2**10 - 1 leapfrog steps)."""
 CHUNK = 25
 """Transitions per compiled call (warmup and draws: the progress bar's steps); the warmup
 and the draws are rounded up to whole chunks (the extra draws are dropped)."""
@@ -232,6 +239,65 @@ def _over_chains(f, together, *xs):
                          check_vma=False)(*xs)
 
 
+def _bounded_while(cond, body, init, n):
+    """`jax.lax.while_loop(cond, body, init)` for a loop known to stop within `n` turns: a
+    `lax.scan` of length n whose turns after the loop stops are a `lax.cond` that does
+    nothing (about 40 ns each on the CPU)."""
+    # as lax.while_loop does, weakly typed initial values take the body's dtypes
+    shapes = jax.eval_shape(body, init)
+    init = jax.tree.map(lambda x, o: jnp.asarray(x, o.dtype), init, shapes)
+
+    def turn(c, _):
+        return jax.lax.cond(cond(c), body, lambda c: c, c), None
+
+    return jax.lax.scan(turn, init, None, length=n)[0]
+
+
+class _TrajectoryLax:
+    """`jax.lax` as blackjax's NUTS trajectory module sees it inside `_static_loops`: its
+    two loops, which build the trajectory (`do_keep_integrating`: at most
+    2**(MAX_DOUBLINGS - 1) leapfrog steps per doubling; `do_keep_expanding`: at most
+    MAX_DOUBLINGS doublings), run as bounded scans (`_bounded_while`); anything else is
+    `jax.lax`'s own."""
+
+    BOUNDS = {"do_keep_integrating": 2 ** (MAX_DOUBLINGS - 1),
+              "do_keep_expanding": MAX_DOUBLINGS}
+
+    def __getattr__(self, name):
+        return getattr(jax.lax, name)
+
+    def while_loop(self, cond, body, init):
+        n = self.BOUNDS.get(getattr(cond, "__name__", ""))
+        if n is None:
+            return jax.lax.while_loop(cond, body, init)
+        return _bounded_while(cond, body, init, n)
+
+
+class _TrajectoryJax:
+    def __getattr__(self, name):
+        return _TrajectoryLax() if name == "lax" else getattr(jax, name)
+
+
+class _static_loops:
+    """While tracing, NUTS's trajectory loops run as scans of static length
+    (`_TrajectoryLax`): the same transitions, draw for draw, but XLA on the CPU runs a
+    gradient about 6 times faster inside a loop of known length than inside a
+    `lax.while_loop` whose length depends on the data (3.4 against 23 ms for the
+    fixed-step decay likelihood; `benchmarks/posterior_time.md`). Only for chains run one
+    after another: under `jax.vmap` a `lax.cond` computes both branches."""
+
+    def __enter__(self):
+        import blackjax.mcmc.trajectory as trajectory
+
+        self._module, self._jax = trajectory, trajectory.jax
+        trajectory.jax = _TrajectoryJax()
+        return self
+
+    def __exit__(self, *exc):
+        self._module.jax = self._jax
+        return False
+
+
 @eqx.filter_jit
 def _init(spec, ll, tp, z0, L, w_init, together=True):
     import blackjax
@@ -253,7 +319,8 @@ def _chunk(spec, ll, tp, z0, L, states, das, imms, eps, keys, adapting, together
     def one(carry, k, imm, eps_fixed):
         state, da = carry
         eps = jnp.where(adapting, jnp.exp(da.log_step_size), eps_fixed)
-        kernel = blackjax.nuts(logdensity, step_size=eps, inverse_mass_matrix=imm)
+        kernel = blackjax.nuts(logdensity, step_size=eps, inverse_mass_matrix=imm,
+                               max_num_doublings=MAX_DOUBLINGS)
         state, info = kernel.step(k, state)
         acc = jnp.where(jnp.isfinite(info.acceptance_rate), info.acceptance_rate, 0.0)
         da_new = da_update(da, acc)
@@ -264,7 +331,10 @@ def _chunk(spec, ll, tp, z0, L, states, das, imms, eps, keys, adapting, together
     def body(carry, ks):
         return _over_chains(one, together, carry, ks, imms, eps)
 
-    return jax.lax.scan(body, (states, das), keys)
+    if together:
+        return jax.lax.scan(body, (states, das), keys)
+    with _static_loops():
+        return jax.lax.scan(body, (states, das), keys)
 
 
 def _run(pb, L, k_warm, k_draw, w_init, warmup, draws, show):

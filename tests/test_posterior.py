@@ -138,6 +138,32 @@ def test_disagreeing_chains_are_flagged_loudly(toy_posterior):
     assert np.allclose(means[:2], MU[0], atol=1) and np.allclose(means[2:], MU[0] + FAR,
                                                                  atol=1)
 
+def test_serial_chains_run_blackjax_nuts_on_static_loops(toy_posterior, monkeypatch):
+    # chains run one after another (chains_together=False, the fixed-step decay path) build
+    # NUTS's trajectories in scans of static length instead of blackjax's while loops
+    # (XLA runs a gradient ~6x faster there): the same transitions as blackjax's own
+    # loops, run vectorised in toy_posterior
+    import identification._posterior as P
+
+    calls = []
+    bounded = P._bounded_while
+    monkeypatch.setattr(P, "_bounded_while",
+                        lambda c, b, i, n: calls.append(n) or bounded(c, b, i, n))
+    serial = identification.sample_posterior(
+        dataclasses.replace(TOY, chains_together=False), chains=CHAINS, draws=DRAWS,
+        warmup=WARMUP, seed=1)
+    assert set(calls) == {P.MAX_DOUBLINGS, 2 ** (P.MAX_DOUBLINGS - 1)}  # both loops
+    np.testing.assert_allclose(np.asarray(serial.z), np.asarray(toy_posterior.z),
+                               rtol=0, atol=1e-8)
+    assert serial.n_leapfrog == toy_posterior.n_leapfrog
+    # the bounded loop is lax.while_loop's: it stops where the condition fails
+    out = P._bounded_while(lambda c: c[0] < c[1], lambda c: (c[0] + 1, c[1]), (0, 7), 20)
+    assert int(out[0]) == 7
+    import jax
+
+    assert jax.numpy.asarray(out[0]).dtype == jax.numpy.asarray(0).dtype
+
+
 
 def test_bad_arguments():
     with pytest.raises(ValueError, match="chains"):

@@ -196,6 +196,29 @@ def test_cli_fit_table_errors_name_the_flag(tmp_path, capsys):
     assert "--table:" in capsys.readouterr().err
     assert main(["fit-table", "a.csv", "--table-units", "g"]) == 2
     assert "--table-units" in capsys.readouterr().err
+    assert main(["fit-table", "a.csv", "--draws-out", "d.csv"]) == 2
+    assert "--draws-out needs --posterior" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # a fit, then a (short) posterior with its compiles: about a minute
+@pytest.mark.timeout(1800)
+def test_cli_fit_table_posterior(tmp_path, run, capsys):
+    path = _write_one(tmp_path, run)
+    draws = tmp_path / "draws.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", identification.IdentifiabilityWarning)
+        warnings.simplefilter("ignore", identification.PosteriorWarning)  # 2 x 40 draws
+        assert main(["fit-table", str(path), "--json", "--posterior", "--chains", "2",
+                     "--draws", "40", "--warmup", "40", "--draws-out", str(draws)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    post = out["posterior"]
+    assert set(post["parameters"]) == set(out["values"])
+    assert post["settings"]["chains"] == 2 and post["draws_out"] == str(draws)
+    k = post["parameters"]["k_f"]
+    assert k["q05"] < out["values"]["k_f"] < k["q95"]
+    lines = draws.read_text().splitlines()
+    assert lines[0].startswith("# units:") and "k_f" in lines[1]
+    assert len(lines) == 2 + 2 * 40
 
 
 @pytest.mark.slow

@@ -23,7 +23,14 @@ from ._common import (
     model_line,
     positive_float,
 )
-from .fit import _channel_map, _CONTACTS, _fit_model_info
+from .fit import (
+    _add_posterior_arguments,
+    _channel_map,
+    _check_posterior_options,
+    _CONTACTS,
+    _fit_model_info,
+    _posterior,
+)
 
 FLAGS = {**COMMON_FLAGS, "structure": "--structure", "units": "--units",
          "table_units": "--table-units", "table_start": "--table-start",
@@ -83,6 +90,7 @@ def add_parser(subparsers):
                                               "be at least 1"),
                    metavar="N", help="number of optimiser starts (default: the model's)")
     add_outputs(f, "plot the measured and fitted response channels and the table motion")
+    _add_posterior_arguments(f)
     f.set_defaults(func=run)
     return f
 
@@ -148,6 +156,7 @@ def run(args):
     import identification
 
     check_outputs(args, r=False)
+    _check_posterior_options(args)
     s = load_structure(args.structure, args.check_plausible)
     runs = _read_runs(args, identification)
     if args.r is not None and not 0.0 < args.r < 1.0:
@@ -172,6 +181,7 @@ def run(args):
         if not issubclass(w.category, shown):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     info = _fit_model_info(args, s, fit, fm)  # r (and c_f) fitted or held, and their starts
+    post = _posterior(args, fit) if args.posterior else None
     if args.plot:
         _plot(args.plot, runs, fit)
     if args.json:
@@ -181,6 +191,8 @@ def run(args):
             for d, r in zip(out["traces"], runs):
                 t0 = d["values"].get("t0", d["fixed"].get("t0"))
                 d["clock_offset"] = t0 - r.table_start
+        if post is not None:
+            out["posterior"] = {**post.summary(), "draws_out": args.draws_out}
         print(json.dumps(out))
         return 0
     for r in runs:
@@ -194,6 +206,10 @@ def run(args):
             d = fit.per_trace[i]
             t0 = d["values"].get("t0", d["fixed"].get("t0"))
             print(f"run {i}: clock offset {1e3 * (t0 - r.table_start):+.4g} ms")
+    if post is not None:
+        print("\n" + post.report())
+        if args.draws_out:
+            print(f"posterior draws written to {args.draws_out}")
     if args.plot:
         print(f"plot written to {args.plot}")
     return 0

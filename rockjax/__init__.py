@@ -24,6 +24,11 @@ from ._batch import (
     simulate_batch as simulate_batch,
     Summary as Summary,
 )
+from ._compare import (
+    compare_models as compare_models,
+    ks_distance as ks_distance,
+    ModelComparison as ModelComparison,
+)
 from ._config import Configuration as Configuration, configure as configure
 from ._distributed import Processes as Processes
 from ._draws import read_draws as read_draws

@@ -66,6 +66,7 @@ __all__ = [
     "cache_dir",
     "el_centro",
     "el_centro_path",
+    "fit_common_step",
     "load_suite",
     "normalize_rows",
     "packaged_data_path",

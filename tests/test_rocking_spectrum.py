@@ -202,3 +202,26 @@ def test_cli_json(tmp_path, capsys):
     assert sp["overturned"] == [False, True] and sp["alpha_rad"] == 0.15
     assert sp["theta_over_alpha"][1] is None and 0 < sp["theta_over_alpha"][0] < 1
     assert (tmp_path / "o.csv").read_text().splitlines()[0].startswith("alpha_rad,p_rad/s")
+
+
+@pytest.mark.slow
+def test_against_the_overturning_spectrum():
+    """The pulse spectra already in rockjax: `overturning_spectrum` of a block (p = 2,
+    alpha = 0.15, rigid_body) gives the lowest one-sine amplitude that overturns at
+    omega_p / p = 3; the rocking spectrum of that pulse as a record, at 0.97 and 1.03 of
+    it, survives and overturns."""
+    alpha, p = 0.15, 2.0
+    block = uniform_block(p, alpha)
+    T = 2 * np.pi / (3.0 * p)
+    sp = rockjax.overturning_spectrum(block, "one_sine", [T], amplitude_rtol=1e-3)
+    a_ot = float(sp.amplitude[0])
+    dt = T / 400
+    t = np.arange(0, T + dt / 2, dt)
+    out = []
+    for f in (0.97, 1.03):
+        rec = rockjax.Record(dt=dt, accel=f * a_ot * np.sin(2 * np.pi * t / T),
+                             source="one-sine")
+        rs = rockjax.rocking_spectrum(rec, alpha, [p], tail=float(sp.t_end[0] - T),
+                                      equivalent_linear=False)
+        out.append(bool(rs.overturned[0]))
+    assert out == [False, True], (a_ot, out)

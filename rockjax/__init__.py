@@ -72,6 +72,10 @@ from ._records import (
     ResampledWarning as ResampledWarning,
 )
 from ._response import Response as Response, STATUS as STATUS
+from ._rocking_spectrum import (
+    rocking_spectrum as rocking_spectrum,
+    RockingSpectrum as RockingSpectrum,
+)
 from ._simulate import simulate as simulate
 from ._spectrum import (
     overturning_spectrum as overturning_spectrum,

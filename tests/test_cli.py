@@ -206,7 +206,8 @@ def test_in_process_main_leaves_the_jax_configuration_alone(monkeypatch, capsys)
 _MINIMAL = {"demo": [], "pushover": [], "simulate": [], "fit": ["t.csv"],
             "fit-table": ["run.csv"],
             "sweep": ["--record", "r.txt"], "fragility": ["--record", "r.txt", "--scales", "1"],
-            "spectrum": ["--pulse", "sine", "--ratios", "1"], "fit-outcomes": ["t.csv"]}
+            "spectrum": ["--pulse", "sine", "--ratios", "1"], "fit-outcomes": ["t.csv"],
+            "rocking-spectrum": ["--record", "r.txt", "--alpha", "0.2"]}
 
 
 def _raising(param, **kw):

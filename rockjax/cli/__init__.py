@@ -13,11 +13,23 @@ import rockjax
 from rockjax._cache import enable_compile_cache
 from rockjax._config import stack_versions
 
-from . import demo, fit, fit_table, fragility, outcomes, pushover, simulate, spectrum, sweep
+from . import (
+    demo,
+    fit,
+    fit_table,
+    fragility,
+    outcomes,
+    pushover,
+    rocking_spectrum,
+    simulate,
+    spectrum,
+    sweep,
+)
 from ._common import CLIError, COMMON_FLAGS, error_text, EXIT_USAGE, Parser
 
 #: the sub-commands, in the order `rockjax --help` lists them
-COMMANDS = (demo, pushover, simulate, fit, fit_table, outcomes, sweep, fragility, spectrum)
+COMMANDS = (demo, pushover, simulate, fit, fit_table, outcomes, sweep, fragility, spectrum,
+            rocking_spectrum)
 
 
 def flags(command):

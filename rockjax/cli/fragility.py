@@ -37,7 +37,7 @@ FLAGS = {**sweep.FLAGS, "im": "--im", "limit": "--limit", "n_bootstrap": "--boot
 #: the keys of the sweep's JSON that `--json` shows under "sweep"
 _SWEEP_KEYS = ("n_runs", "n_records", "n_scales", "status_counts", "wall_time_s", "tail_s",
                "t1", "grid_dt_s", "model", "model_info", "method", "substeps", "records",
-               "record_info", "skipped_files", "scales")
+               "record_info", "skipped_files", "suites", "suite_notes", "scales")
 
 
 # ------------------------------------------------------------------------------ parser

@@ -27,6 +27,7 @@ import numpy as np
 import rockjax
 from rockjax._batch import DEFAULT_TAIL
 from rockjax._distributed import fingerprint
+from rockjax._p695 import _SETS, SUITES
 from rockjax._plotting import plot_sweeps
 from rockjax._records import common_time_step, record_format
 from rockjax._store import runs_done
@@ -125,8 +126,9 @@ def add_input_arguments(w, structure="structure file, repeatable (default: Table
     w.add_argument("--structure", action="append", metavar="FILE.toml", help=structure)
     add_plausibility_argument(w)
     w.add_argument(
-        "--record", action=_InOrder, required=True, metavar="FILE[:UNITS]|DIR",
-        help="ground-motion record file, repeatable (at least one); FILE:g, FILE:m/s2, "
+        "--record", action=_InOrder, metavar="FILE[:UNITS]|DIR",
+        help="ground-motion record file, repeatable (at least one --record or --suite); "
+        "FILE:g, FILE:m/s2, "
         "FILE:cm/s2 or FILE:gal states its units; a folder takes every record file in it "
         "(.AT2, .dat, .txt, .csv, .acc, ESM .ASC, K-NET .EW/.NS/.UD[12], .gz), sorted by "
         "name")
@@ -136,6 +138,15 @@ def add_input_arguments(w, structure="structure file, repeatable (default: Table
         "that states no units of its own). A file that states its units (AT2 'UNITS OF "
         "G', a column title 'Accel[g]') is read in them; units given that contradict them "
         "are refused")
+    w.add_argument(
+        "--suite", action="append", type=suite_name, metavar="NAME[:normalized]",
+        help=f"a standard record suite, repeatable, beside or instead of --record: "
+        f"{', '.join(SUITES)} (rockjax.datasets.load_suite; needs pip install "
+        "'rockjax[suites]'); NAME:normalized applies the FEMA P695 normalisation factor "
+        "(median PGV_PEER / the record's PGV_PEER, Eq. A-1) to each record. Its "
+        "components are labelled FF01a, FF01b, ... (NFP, NFN: near-field pulse, no-pulse); "
+        "a component whose step has no common grid with the others is resampled onto one "
+        "(the report says which)")
     w.add_argument("--record-dt", type=positive_float("--record-dt"), metavar="DT",
                    help="sample step [s] of the one-column records (the others state their own)")
     add_time_tolerance_argument(w)
@@ -177,6 +188,34 @@ def _sweep_structures(paths, check_plausible=True):
         except (ValueError, OSError) as e:
             raise CLIError(f"--structure: {first_line(e)}") from None
     return structures, ["table1"] if paths is None else unique_labels(paths)
+
+
+_SUITE_PREFIX = {name: prefix for name, (_, prefix, _) in _SETS.items()}
+
+
+def suite_name(text):
+    """(suite name, normalized) of --suite NAME[:normalized]."""
+    name, sep, tail = str(text).partition(":")
+    if name not in SUITES or (sep and tail not in ("normalized", "normalised")):
+        raise argparse.ArgumentTypeError(
+            f"expected one of {', '.join(SUITES)}, optionally with :normalized; got {text!r}")
+    return name, bool(sep)
+
+
+def _read_suites(suites):
+    """(records, labels, notes) of the --suite values, in order."""
+    records, labels, notes = [], [], []
+    for name, normalized in suites or []:
+        try:
+            suite = rockjax.datasets.load_suite(name, normalized=normalized)
+        except ImportError as e:
+            raise CLIError(f"--suite {name}: {first_line(e)}") from None
+        records += suite.records
+        labels += suite.labels
+    if records:
+        records, resampled = rockjax.datasets.fit_common_step(records, labels=labels)
+        notes += [f"resampled {n}" for n in resampled]
+    return records, labels, notes
 
 
 def _record_specs(inputs):
@@ -235,6 +274,8 @@ class Sweep:
     tail: float
     t1: float | None
     skipped: dict = dataclasses.field(default_factory=dict)
+    suites: list = dataclasses.field(default_factory=list)  # --suite (name, normalized)
+    suite_notes: list[str] = dataclasses.field(default_factory=list)
     processes: int = 1
     found: int = 0  # --store: the runs found done there (a resumed sweep)
     results: list = dataclasses.field(default_factory=list)
@@ -255,16 +296,25 @@ def read_sweep(args):
     checked here (a one-line error when there is none), and the length of the runs."""
     structures, struct_labels = _sweep_structures(args.structure, args.check_plausible)
     specs, default_units = _record_specs(args.inputs)
+    if not specs and not getattr(args, "suite", None):
+        raise CLIError("give at least one --record FILE or --suite NAME")
     specs, skipped = expand_folders(specs)
     records = _read_records(specs, default_units, args.record_dt, args.check_plausible,
                             args.time_tolerance)
+    labels = unique_labels([s.path for s in specs])
+    names = [pathlib.Path(s.path).name for s in specs]
+    suite_records, suite_labels, suite_notes = _read_suites(getattr(args, "suite", None))
+    if set(suite_labels) & set(labels) or len(set(suite_labels)) < len(suite_labels):
+        raise CLIError("--suite: a suite given twice, or a record file labelled as one of "
+                       "its components")
+    records, labels, names = records + suite_records, labels + suite_labels, names + suite_labels
     try:
-        grid = common_time_step([r.dt for r in records],
-                                names=[pathlib.Path(s.path).name for s in specs])
+        grid = common_time_step([r.dt for r in records], names=names)
     except ValueError as e:
         raise CLIError(f"--record: {first_line(e)}") from None
-    sweep = Sweep(structures, struct_labels, records, unique_labels([s.path for s in specs]),
-                  np.asarray(args.scales, float), args.tail, args.t1, skipped)
+    sweep = Sweep(structures, struct_labels, records, labels,
+                  np.asarray(args.scales, float), args.tail, args.t1, skipped,
+                  suites=list(getattr(args, "suite", None) or []), suite_notes=suite_notes)
     n = max(min(r.dt * (r.npts - 1) + sweep.tail, sweep.t1 or math.inf) for r in records) / grid
     if not n <= MAX_STEPS:  # a one-line error naming --tail, rather than numpy's size error
         raise CLIError(
@@ -399,6 +449,8 @@ def sweep_json(args, sweep):
         "store": getattr(args, "store", None), "runs_found_done": sweep.found,
         "plot": args.plot, "structures": sweep.struct_labels, "records": sweep.rec_labels,
         "record_info": first.record_info(), "skipped_files": sweep.skipped,
+        "suites": [{"name": n, "normalized": z} for n, z in sweep.suites],
+        "suite_notes": sweep.suite_notes,
         "scales": [float(x) for x in sweep.scales],
         "fraction_overturned": {lab: [None if np.isnan(x) else float(x)
                                       for x in r.fraction_overturned()]
@@ -415,6 +467,12 @@ def print_inputs(sweep):
         taken = sum(pathlib.Path(r.source).parent == pathlib.Path(folder) for r in sweep.records)
         note = f"; skipped (not record files): {', '.join(names)}" if names else ""
         print(f"folder        {folder}: {taken} record file(s) taken{note}")
+    for name, normalized in sweep.suites:
+        n = sum(lab.startswith(_SUITE_PREFIX[name]) for lab in sweep.rec_labels)
+        print(f"suite         {name}{' (normalized, FEMA P695 Eq. A-1)' if normalized else ''}"
+              f": {n} components")
+    for note in sweep.suite_notes:
+        print(f"suite         {note} (no common grid with the others)")
     print(sweep.results[0].report_inputs())
 
 

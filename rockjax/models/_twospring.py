@@ -127,6 +127,9 @@ class TwoSpring2DOF(AbstractRockingModel):
     def init(self, structure, u0, v0, first, forced):
         return _initial_state(structure, u0, v0)
 
+    def start(self, structure, y, mode, a_g):
+        return y, mode  # on its springs from the start: no rest state to leave
+
     def vector_field(self, structure, y, mode, a_g):
         q, qd = y[:2], y[2:]
         qdd = accelerations(structure, self, q, qd, mode.pivot, mode.cl > 0, mode.cr > 0, a_g)

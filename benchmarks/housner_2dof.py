@@ -127,7 +127,7 @@ def main():
         "to impact: errors of order sqrt(E_vib/E) ~ k_f^(-1/2), of either sign. Any dashpot "
         "damps it between impacts (the vertical period is about a millisecond, the rocking "
         "half-cycles about a second); what remains is the vibration energy lost at each "
-        "impact, of order E_vib/E ~ 1/k_f, the same at 1 % or 5 % of critical: the "
+        "impact, of order E_vib/E ~ 1/k_f, nearly the same with dashpots five times weaker: the "
         "errors fall tenfold per decade of k_f. The impact law itself (Housner's rate "
         "ratio sqrt(r) at a rocking impact, the corner-alone plastic impact at a hop "
         "landing), the solver tolerances and the event location are not the cause: with "

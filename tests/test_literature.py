@@ -15,36 +15,19 @@ import math
 
 import numpy as np
 import pytest
+from helpers.literature import (
+    critical_double_impulse,
+    double_impulse_run,
+    linearised_threshold,
+    point_mass_block,
+    PT1,
+    uniform_block,
+)
 from scipy.integrate import solve_ivp
 
 import rockjax
 from rockjax import simulate
-from rockjax._spectrum import frequency_parameter
-
-PT1 = np.array([0.5, 1.0, 2.0])
-
-
-def linearised_threshold(pt1):
-    """Housner's linearised rectangular-pulse threshold a/(g tan alpha)."""
-    return 1.0 / (1.0 - np.exp(-np.asarray(pt1)))
-
-
-def point_mass_block(alpha, h=1.0, m=1000.0, k_f=1e10):
-    """A block whose mass sits at its centroid (height h [m], slenderness alpha): for it
-    the `housner` SDOF (inertia m about the top mass) linearises to Housner's equation
-    theta'' = p^2 (theta - alpha + a/g) with p^2 = g/R = W R / I_O."""
-    return rockjax.RockingStructure(m_e=m / 2, m_b=m / 2, H_e=h, H_b=h, B=h * math.tan(alpha),
-                                    I_eg=0.0, I_bg=0.0, k_f=k_f)
-
-
-def uniform_block(h, k_f=1e10, ratio=0.15, rho=1000.0):
-    """A uniform block 2b x 2h [m] (b = ratio h) of density rho [kg/m^2 per unit depth],
-    as two equal halves at its centroid."""
-    b = ratio * h
-    m = rho * 4 * b * h
-    inertia = 0.5 * m * (b * b + h * h) / 3.0
-    return rockjax.RockingStructure(m_e=m / 2, m_b=m / 2, H_e=h, H_b=h, B=b, I_eg=inertia,
-                                    I_bg=inertia, k_f=k_f)
+from rockjax._spectrum import frequency_parameter, periods_at
 
 
 # ------------------------------------------------------- a rigid block released by a jump
@@ -119,3 +102,44 @@ def test_housner_linearised_rectangular_pulse(rectangular_thresholds):
     assert np.all(np.abs(err[0.01]) < 5e-5), err
     ratio = err[0.05] / err[0.01]
     assert np.all((ratio > 15) & (ratio < 35)), ratio  # (0.05 / 0.01)^2 = 25
+
+
+# ------------------------------------------------------------ the critical double impulse
+def test_closed_form_critical_double_impulse():
+    """The uniform block (0.30 x 2.0 m, 1,000 kg, alpha = 0.149) on stiff springs
+    (rigid_body, k_f = 1e10 N/m), impulses as 2-ms rectangles: it survives the double
+    impulse at 0.99 of the closed form V = 0.27811 m/s and overturns at 1.01 of it
+    (rockjax's threshold, by bisection: +0.30 %, `docs/benchmarks_literature.md`)."""
+    s = uniform_block(1.0)
+    V = critical_double_impulse(s)
+    g, R, a = float(s.g), float(s.R_c), float(s.alpha_c)
+    eta = 1 - 1.5 * math.sin(a) ** 2  # a uniform block's eta, independently
+    assert V == pytest.approx(math.sqrt(8 * g * R * (1 - math.cos(a)) / 3)
+                              / ((1 + eta) * math.cos(a)), rel=1e-12)
+    assert V == pytest.approx(0.27811, abs=1e-5)
+    assert double_impulse_run(s, 0.99 * V)[0] == "completed"
+    assert double_impulse_run(s, 1.01 * V)[0] == "overturned"
+
+
+# ---------------------------------------------------- geometric similarity (collapse)
+def test_similar_blocks_collapse_in_the_dimensionless_axes():
+    """Dimitrakopoulos & DeJong (2012): blocks of the same slenderness have one overturning
+    spectrum in (omega_p / p, a / (g tan alpha)), whatever their size. Uniform blocks
+    b/h = 0.15 of h = 0.5 and 2 m (p = 3.81 and 1.91 rad/s), one-sine pulses at
+    omega_p / p = 2 and 6, rigid_body with k_f scaled as h^2 (the mass goes as h^3, so
+    the springs, too, are similar: omega_spring / p and delta_0 / B the same):
+    thresholds within 2e-3 of each other (the brackets are 1e-3 wide), at pulse periods a
+    factor 2 apart."""
+    x = np.array([2.0, 6.0])
+    spectra = []
+    for h in (0.5, 2.0):
+        s = uniform_block(h, k_f=1e10 * h**2)
+        spectra.append(rockjax.overturning_spectrum(s, "one_sine", periods_at(s, "one_sine", x),
+                                                    model="rigid_body"))
+    small, large = spectra
+    np.testing.assert_allclose(small.x, x, rtol=1e-12)
+    np.testing.assert_allclose(large.x, x, rtol=1e-12)
+    np.testing.assert_allclose(large.periods / small.periods, 2.0, rtol=1e-12)
+    spread = np.abs(large.normalised / small.normalised - 1)
+    assert np.all(spread < 2e-3), spread
+    assert small.mode == large.mode

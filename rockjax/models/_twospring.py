@@ -43,10 +43,10 @@ as $k_f \to \infty$ (tested in `tests/test_twospring.py`). Without dashpots it d
 slowly and irregularly: the vertical vibration that each rocking impact starts (the
 landing corner, stopped on its unloaded spring, must take the weight) is never damped,
 and its velocity, about $g\sqrt{m/k_f}$, meets the next impact with a changing phase
-(errors $\sim k_f^{-1/2}$, of either sign: 1.3e-3 in the crossing times at $10^{10}$
-N/m). Dashpots of a few per cent of critical for the vertical mode damp it between
-impacts, and the errors fall as $1/k_f$ (3e-4 at $10^{10}$ N/m;
-`benchmarks/housner_2dof.md`).
+(errors $\sim k_f^{-1/2}$ that grow or shrink from one impact to the next: 1.3e-3 in
+the crossing times at $10^{10}$ N/m). Dashpots of a few per cent of critical for the
+vertical mode damp it between impacts, and the errors fall as $1/k_f$ (3e-4 at $10^{10}$
+N/m; `benchmarks/housner_2dof.md`).
 
 **Ringing below lift-off.** Impacts are the only dissipation of the undamped model, and
 they happen only at landings. Once the rocking amplitude falls to about $u_{crit}$ the

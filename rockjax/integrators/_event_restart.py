@@ -234,6 +234,7 @@ def _start(scene, excitation, n, cfg):
     y0, mode0 = model.init(s, jnp.asarray(u0, dtype), jnp.asarray(v0, dtype), first,
                            excitation.forced)
     t0 = jnp.zeros((), dtype)
+    y0, mode0 = model.start(s, y0, mode0, scene.a_g(t0))
     obs = model.observe(s, y0, mode0)
     flow = scene.field(t0, y0, (mode0, None, None))
     _, acc = jax.jvp(lambda y: model.observe(s, y, mode0).v, (y0,), (flow,))

@@ -453,6 +453,9 @@ def run(model, structure, excitation, r, t1, cfg: StepperConfig):
     table, dt_rec = exc.table, exc.dt
     first = jnp.broadcast_to(exc.first_direction(), (N,))
     y, mode = per_member(lambda *a: model.init(*a, cfg.forced), s)(u0, v0, first)
+    if cfg.forced:  # the ground acceleration at t = 0 (right limit, zero past the end)
+        a_start = jnp.where(exc.lengths[rec] > 1, exc.table[rec, 0], 0.0) * scale
+        y, mode = per_member(model.start, s)(y, mode, a_start)
     unstable = jnp.zeros((N,), bool)
     if cfg.method == "rk4":
         # RK4 is stable only for h * omega below about 2.8; beyond 2.5 the run would be

@@ -65,6 +65,12 @@ class AbstractRockingModel(eqx.Module):
         """
 
     @abc.abstractmethod
+    def start(self, structure, y, mode, a_g):
+        """`(y, mode)` at the start of a run, under the ground acceleration `a_g` [m/s²]
+        at t = 0: for a state whose conditions already lie past their surface there
+        (events fire when a condition reaches zero, not when it starts below it)."""
+
+    @abc.abstractmethod
     def vector_field(self, structure, y, mode, a_g):
         """$dy/dt$ in the given mode under ground acceleration `a_g` [m/s²]."""
 

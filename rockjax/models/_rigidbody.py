@@ -218,6 +218,9 @@ class RigidBody(AbstractRockingModel):
         mode = RigidBodyMode(sign=sign, lifted=lifted, settled=settled)
         return jnp.stack([th0, w0]), mode
 
+    def start(self, structure, y, mode, a_g):
+        return y, mode  # on its springs from the start: no rest state to leave
+
     def vector_field(self, structure, y, mode, a_g):
         acc = angular_acceleration(structure, y[0], y[1], mode.sign, mode.lifted, a_g)
         return jnp.stack([y[1], acc])

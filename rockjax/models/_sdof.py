@@ -110,6 +110,18 @@ class SDOF(AbstractRockingModel):
         )
         return jnp.stack([u0, v0]), mode
 
+    def start(self, structure, y, mode, a_g):
+        """A rigid block at rest is released at t = 0 if the ground acceleration already
+        exceeds k(0+)/M there (a pulse that starts with a jump: rectangular, one-cosine);
+        its release events fire only when |a_g| reaches the threshold later."""
+        if not self.rigid:
+            return y, mode
+        go = mode.resting & (jnp.abs(a_g) > self._a_up(structure))
+        new = eqx.tree_at(lambda m: (m.sign, m.resting), mode,
+                          (jnp.where(go, jnp.where(a_g > 0, -1.0, 1.0).astype(mode.sign.dtype),
+                                     mode.sign), mode.resting & ~go))
+        return y, new
+
     def vector_field(self, structure, y, mode, a_g):
         s = structure
         u, v = y[0], y[1]

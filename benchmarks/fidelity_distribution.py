@@ -84,8 +84,7 @@ def load(args):
         return recs, [r.source or f"record {i}" for i, r in enumerate(recs)], \
             f"the records of {args.records}", notes
     suite = rockjax.datasets.load_suite(args.suite, normalized=args.normalized)
-    labels = [f"{m.get('record', i)}-{m.get('component', '')}"
-              for i, m in enumerate(suite.metadata)]
+    labels = list(suite.labels)
     what = f"suite {suite.name}" + (" (P695-normalised)" if args.normalized else "")
     return list(suite.records), labels, what, []
 

@@ -187,15 +187,20 @@ class ModelComparison:
         lv = np.asarray(self.quantile_levels)
         mid, lo, hi = (int(np.argmin(np.abs(lv - 0.5))), int(np.argmin(lv)),
                        int(np.argmax(lv)))
-        for lab in self.labels:
-            q = np.asarray(self.quantiles[lab])
-            finite_top = np.nanmax(np.where(np.isfinite(q), q, np.nan))
-            cap = 1.5 * finite_top if np.isfinite(finite_top) else 1.0
+        qs = np.stack([np.asarray(self.quantiles[lab]) for lab in self.labels])
+        top = np.nanmax(np.where(np.isfinite(qs), qs, np.nan)) if np.any(
+            np.isfinite(qs)) else 1.0
+        cap = 1.15 * top  # an overturned run is drawn here, one line for every model
+        for lab, q in zip(self.labels, qs):
             (ln,) = ax1.plot(self.scales, np.minimum(q[mid], cap), label=lab)
             ax1.fill_between(self.scales, np.minimum(q[lo], cap), np.minimum(q[hi], cap),
-                             color=ln.get_color(), alpha=0.15)
+                             color=ln.get_color(), alpha=0.12)
+        ax1.axhline(cap, color="k", lw=0.8, ls=":")
+        ax1.text(self.scales[0], cap, " overturned", va="bottom", fontsize=8)
+        if self.scales.min() > 0 and self.scales.max() / self.scales.min() > 4:
+            _log_axis(ax1)
         ax1.set_xlabel("scale")
-        ax1.set_ylabel("peak rotation [rad] (overturned: top of the axis)")
+        ax1.set_ylabel("peak rotation [rad]")
         ax1.set_title(f"quantiles {lv[lo]:g}, {lv[mid]:g}, {lv[hi]:g} over the records",
                       fontsize=9)
         ax1.legend(fontsize=7)
@@ -205,11 +210,24 @@ class ModelComparison:
             if isinstance(f, FragilityResult):
                 ax2.plot(f.grid, f.probability(f.grid), label=f"{lab} (median {f.median:.3g},"
                          f" beta {f.beta:.2f})")
+        if self.im == "scale" and self.scales.min() > 0 and \
+                self.scales.max() / self.scales.min() > 4:
+            _log_axis(ax2)
         ax2.set_xlabel(self.im)
         ax2.set_ylabel(f"P({lim})")
         ax2.legend(fontsize=7)
         fig.tight_layout()
         return fig
+
+
+def _log_axis(ax):
+    """A logarithmic x axis labelled at 1, 2, 5 x 10^k in plain numbers."""
+    from matplotlib import ticker
+
+    ax.set_xscale("log")
+    ax.xaxis.set_major_locator(ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax.xaxis.set_major_formatter(ticker.FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(ticker.NullFormatter())
 
 
 def _ci(ci):

@@ -32,7 +32,11 @@ on `GRID_CHECK_POINTS` points of the Laplace approximation spread 1.5 times wide
 log likelihoods must differ by a constant to within a standard deviation of
 `GRID_LOGL_SD` = 0.05 (the two posteriors then differ by about that much in total
 variation: far inside the Monte Carlo error of the draws). A step that fails is halved, up
-to `GRID_HALVINGS` times; if none passes, the posterior keeps the adaptive solver.
+to `GRID_HALVINGS` times; if none passes, the posterior keeps the adaptive solver. The check
+must also be able to fail: when the fit leaves a parameter unpinned (a Laplace sd above
+`identification._posterior.MAX_Z_SD` in z: k_f run off to the rigid limit, say) or the
+adaptive log L varies by less than `GRID_LOGL_SPREAD` over the points, the adaptive solver
+is kept.
 `PosteriorProblem.likelihood_note` (and `Posterior.report`) says which was used and the
 measured difference.
 
@@ -63,6 +67,9 @@ GRID_LOGL_SD = 0.05
 """The largest sd of (fixed-step - adaptive) log L over those points."""
 GRID_HALVINGS = 2
 """Halvings of the fixed step tried before keeping the adaptive solver."""
+GRID_LOGL_SPREAD = 1.0
+"""The smallest sd of the adaptive log L over the check's points: below it the points do not
+probe the likelihood (a degenerate fit) and the check proves nothing."""
 
 SIGMA_LN = 2.0
 """The sd of ln k_f (and ln c_f) of the default lognormal priors."""
@@ -220,9 +227,16 @@ class _JointToPhysical(eqx.Module):
 
 def _on_grid(ll: DecayLogLikelihood, z0, cov0):
     """(the fixed-step log likelihood, or None, and the note): module docstring."""
+    from ._posterior import MAX_Z_SD
+
     model = ll.model
     if cov0 is None or model.accel is not None:
         return None, ""
+    if np.any(np.sqrt(np.maximum(np.diag(cov0), 0.0)) > MAX_Z_SD):
+        # a parameter the fit does not pin down (k_f run off to the rigid limit, say): the
+        # chains go where no check point lies
+        return None, ("adaptive solver (the fit does not pin every parameter down: the "
+                      "fixed-step likelihood cannot be checked where the chains go)")
     t = np.asarray(model.t, float)
     t0 = float(model.decode(jnp.asarray(z0))["t0"])
     span = float(t[-1]) - min(t0, float(t[0]))
@@ -237,6 +251,9 @@ def _on_grid(ll: DecayLogLikelihood, z0, cov0):
     ok = np.isfinite(exact)
     if np.count_nonzero(ok) < GRID_CHECK_POINTS // 2:
         return None, ""
+    if float(np.std(exact[ok])) < GRID_LOGL_SPREAD:
+        return None, ("adaptive solver (the check's points do not probe the likelihood: "
+                      f"its log L varies by sd {float(np.std(exact[ok])):.2g} over them)")
     tried = []
     for k in range(GRID_HALVINGS + 1):
         dt = step / 2**k

@@ -306,3 +306,13 @@ def test_decay_posterior_runs_on_the_checked_fixed_step_likelihood(decay_fit, mo
     pb2 = fit.posterior_problem()
     assert pb2.chains_together is True and pb2.log_likelihood.model.grid_dt is None
     assert pb2.likelihood_note.startswith("adaptive solver")
+    monkeypatch.undo()
+    # a check that proves nothing is not taken: a fit that leaves a parameter unpinned (its
+    # Laplace sd beyond what the chains' whitening keeps) ...
+    wide = np.array(pb.cov0) * 1e6
+    fast, note = PD._on_grid(exact, np.asarray(pb.z0), wide)
+    assert fast is None and "does not pin" in note
+    # ... or points over which log L hardly moves
+    tiny = np.array(pb.cov0) * 1e-12
+    fast, note = PD._on_grid(exact, np.asarray(pb.z0), tiny)
+    assert fast is None and "do not probe" in note

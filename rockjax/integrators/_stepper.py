@@ -80,21 +80,21 @@ class Member(eqx.Module):
 
 
 def per_member(f, s):
-    """`f(s, *args)` mapped over the members (`jax.vmap`): the structure's leaves that vary
-    per member (shape (N,)) are mapped and the shared ones (shape ()) are not, so that a
-    shared structure is not copied into every member; every other argument is mapped."""
+    """`f(s, *args)` mapped over the members (`jax.vmap`), the members on the **last** axis
+    of every argument and result (a member's state of d values is a (d, N) array: each
+    component contiguous over the members, which XLA vectorises; (N, d) interleaved ran
+    the same RK4 about 2.9x slower). The structure's leaves that vary per member (shape
+    (N,)) are mapped and the shared ones (shape ()) are not, so that a shared structure is
+    not copied into every member; every other argument is mapped."""
     axes = jax.tree_util.tree_map(lambda x: 0 if jnp.ndim(x) == 1 else None, s)
-    return lambda *args: jax.vmap(f, in_axes=(axes,) + (0,) * len(args))(s, *args)
+    return lambda *args: jax.vmap(f, in_axes=(axes,) + (-1,) * len(args),
+                                  out_axes=-1)(s, *args)
 
 
 def tree_where(pred, a, b):
-    """`jnp.where` leaf by leaf, `pred` broadcast against each leaf's leading axes."""
-
-    def sel(x, z):
-        p = jnp.reshape(pred, jnp.shape(pred) + (1,) * (jnp.ndim(x) - jnp.ndim(pred)))
-        return jnp.where(p, x, z)
-
-    return jax.tree_util.tree_map(sel, a, b)
+    """`jnp.where` leaf by leaf, `pred` (shape (N,)) broadcast against each leaf's last
+    axis, the members' (`per_member`)."""
+    return jax.tree_util.tree_map(lambda x, z: jnp.where(pred, x, z), a, b)
 
 
 def rk_step(model, s, y, mode, tau, h, a0, da, cfg):
@@ -214,8 +214,8 @@ def piece(model, cfg, s, r, st, tau, L, t_start, a0, da, y1=None):
         tr = per_member(lambda *a: trial(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da,
                                                              y1)
     accept, hprop = _accept(cfg, st, tr, h, active)
-    fire = fired(tr) & (active & accept)[:, None]
-    hit = jnp.any(fire, axis=-1)
+    fire = fired(tr) & (active & accept)
+    hit = jnp.any(fire, axis=0)
 
     def with_events(_):
         return per_member(lambda *a: locate(model, cfg, *a), s)(st.y, st.mode, tau, h, a0, da,
@@ -225,9 +225,9 @@ def piece(model, cfg, s, r, st, tau, L, t_start, a0, da, y1=None):
         return tr.y1, h, jnp.zeros(h.shape, jnp.int32)
 
     ye, hp, which = jax.lax.cond(jnp.any(hit), with_events, without, None)
-    ye = jnp.where(hit[:, None], ye, tr.y1)
+    ye = jnp.where(hit, ye, tr.y1)
     hp = jnp.where(hit, hp, h)
-    ok = jnp.all(jnp.isfinite(ye), axis=-1)
+    ok = jnp.all(jnp.isfinite(ye), axis=0)
     step = active & accept & ok
     st = _advance(model, cfg, s, r, st, ye, hp, which, hit & step, step, active & ~ok,
                   t_start + tau + hp, a0 + da * (tau + hp))
@@ -247,11 +247,11 @@ def _advance(model, cfg, s, r, st, ye, hp, which, event, step, failed, t_ev, a_e
     tally = tree_where(step, tally_peak(st.tally, peak, up, u_ot), st.tally)
     yj, mj, flags = per_member(model.jump, s)(ye, st.mode, which, r, a_ev)
     flags = jax.tree_util.tree_map(lambda f: f & event, flags)
-    tally = jax.vmap(lambda tl, fl, t, uo: tally_event(tl, fl, t, cfg.max_impacts, uo))(
-        tally, flags, t_ev, u_ot)
+    tally = jax.vmap(lambda tl, fl, t, uo: tally_event(tl, fl, t, cfg.max_impacts, uo),
+                     in_axes=-1, out_axes=-1)(tally, flags, t_ev, u_ot)
     tally = tally_fail(tally, failed)
     return Member(
-        y=jnp.where(step[:, None], jnp.where(event[:, None], yj, ye), st.y),
+        y=jnp.where(step, jnp.where(event, yj, ye), st.y),
         mode=tree_where(event, mj, st.mode),
         tally=tally,
         hprop=st.hprop,
@@ -262,9 +262,9 @@ def _finish(model, cfg, s, st, tau, L, a0, da):
     """rk4: integrate what is left of the step without events (pieces ran out)."""
     todo = ~st.tally.done & (tau < L)
     y1, _ = per_member(lambda *a: rk_step(model, *a, cfg), s)(st.y, st.mode, tau, L - tau, a0, da)
-    ok = jnp.all(jnp.isfinite(y1), axis=-1)
+    ok = jnp.all(jnp.isfinite(y1), axis=0)
     st = eqx.tree_at(lambda m: (m.y, m.tally), st,
-                     (jnp.where((todo & ok)[:, None], y1, st.y), tally_fail(st.tally, todo & ~ok)))
+                     (jnp.where(todo & ok, y1, st.y), tally_fail(st.tally, todo & ~ok)))
     return st
 
 
@@ -280,8 +280,9 @@ COMPACT_MIN = 256
 
 
 def _take(x, idx, n):
-    """The members `idx` of a leaf with a leading batch axis of length n (others as is)."""
-    return jnp.take(x, idx, axis=0, mode="clip") if jnp.ndim(x) and x.shape[0] == n else x
+    """The members `idx` of a leaf with the members on its last axis, of length n (others
+    as is)."""
+    return jnp.take(x, idx, axis=-1, mode="clip") if jnp.ndim(x) and x.shape[-1] == n else x
 
 
 #: bits per word of `first_members`' bit mask
@@ -338,8 +339,8 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     g0 = per_member(model.conditions, s)(st.y, st.mode, a0 + da * tau)
     g1 = per_member(model.conditions, s)(y1, st.mode, a0 + da * (tau + (L - tau)))
     tr = Trial(y1, None, g0, None, g1, None)
-    ok = jnp.all(jnp.isfinite(tr.y1), axis=-1)
-    easy = active & ok & ~jnp.any(fired(tr), axis=-1)
+    ok = jnp.all(jnp.isfinite(tr.y1), axis=0)
+    easy = active & ok & ~jnp.any(fired(tr), axis=0)
     hard = active & ~easy
     # the easy members: exactly a piece without an event (its peak, then the step's end)
     obs0 = per_member(model.observe, s)(st.y, st.mode)
@@ -348,7 +349,7 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     peak = piece_peak(obs0.u, obs0.v, obs1.u, obs1.v, L - tau)
     up = per_member(model.tracked_uplift, s)(tr.y1, st.mode)
     st = eqx.tree_at(lambda m: (m.y, m.tally), st,
-                     (jnp.where(easy[:, None], tr.y1, st.y),
+                     (jnp.where(easy, tr.y1, st.y),
                       tree_where(easy, tally_peak(st.tally, peak, up, u_ot), st.tally)))
 
     width = _compact_width(n)
@@ -362,7 +363,7 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
         # every member of a round starts the step here: its first piece continues from
         # the whole-batch trial step (not integrated again)
         out = substep(model, cfg, s_, r_, st_, t_, L_, a0_, a1_, compact=False, y1=y1_)
-        st = jax.tree_util.tree_map(lambda x, y: x.at[idx].set(y, mode="drop"), st, out)
+        st = jax.tree_util.tree_map(lambda x, y: x.at[..., idx].set(y, mode="drop"), st, out)
         return st, todo.at[idx].set(False, mode="drop")
 
     return jax.lax.while_loop(lambda c: jnp.any(c[1]), rounds, (st, hard))[0]
@@ -512,5 +513,5 @@ def _results(model, cfg, s, start, final, outs):
         for name in ("u", "v", "theta", "uplift"):
             res[name] = jnp.concatenate([getattr(obs0, name)[:, None],
                                          getattr(outs, name).T], axis=1)
-        res["impact_times"] = t.impact_times
+        res["impact_times"] = t.impact_times.T  # (N, max_impacts)
     return res

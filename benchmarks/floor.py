@@ -52,7 +52,7 @@ def _force(p, u):
     """k(u) [N] of the simplified law, branch-free (`rockjax.models.Simplified`)."""
     K1, P2, uc, uo = p[0], p[1], p[2], p[3]
     a = jnp.abs(u)
-    post = jnp.sign(u) * (P2 * (a - uo) / (uc - uo))
+    post = jnp.sign(u) * ((a - uo) * (P2 / (uc - uo)))  # as `rockjax.models.Simplified`
     return jnp.where(a > uc, post, K1 * u)
 
 

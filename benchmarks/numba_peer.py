@@ -41,10 +41,10 @@ PARAMS = ("K1", "P_crit2", "u_crit", "u_overturn", "mass")
 def _acc(u, sign, branch, K1, P2, u_crit, u_ot, mass, a_g):
     """du/dt of Eq. 1 on one smooth branch [m/s²] (`Simplified.branch`)."""
     if branch:
-        k = sign * (P2 * (sign * u - u_ot) / (u_crit - u_ot))
+        k = sign * ((sign * u - u_ot) * (P2 / (u_crit - u_ot)))
     else:
         k = K1 * u
-    return -k / mass - a_g
+    return -k * (1.0 / mass) - a_g
 
 
 @njit(inline="always")

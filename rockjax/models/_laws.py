@@ -33,7 +33,7 @@ def _rocking_force(structure, theta):
 def _simplified_post(structure, a):
     r"""Eq. 20 on $a = |u|$: $P_{crit2}(a - u_{ot})/(u_{crit} - u_{ot})$ [N]."""
     s = structure
-    return s.P_crit2 * (a - s.u_overturn) / (s.u_crit - s.u_overturn)
+    return (a - s.u_overturn) * (s.P_crit2 / (s.u_crit - s.u_overturn))
 
 
 class AbstractRestoringForce(eqx.Module):

@@ -33,7 +33,6 @@ Events, in the order of `RigidBody.conditions`:
 
 from __future__ import annotations
 
-import math
 from typing import ClassVar
 
 import equinox as eqx
@@ -64,22 +63,32 @@ class RigidBodyMode(eqx.Module):
     settled: jnp.ndarray
 
 
-#: Taylor coefficients of sin x / x and cos x in x², to x^22 and x^23: the truncation
-#: error is below x^24 / 24! (8e-20 at |x| = pi/2), under the rounding of float64
-_SIN = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(12))
-_COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(12))
+#: Coefficients of sin x / x and cos x in t = x² (nine each): their Taylor series (to x^58)
+#: economised by Chebyshev on |x| <= pi/2 (written in Chebyshev polynomials of t over
+#: [0, (pi/2)²] in exact rational arithmetic, truncated at degree 8, and back; the
+#: truncation is below 4e-18, under the rounding of float64): three fewer multiply-adds
+#: each than the Taylor polynomials to x^23 and x^22 used before, in what the batched
+#: stepper evaluates five times per RK4 step (`benchmarks/results.md` (g)).
+_SIN = (1.0, -0.16666666666666666, 0.008333333333333186, -0.0001984126984120872,
+        2.755731921123654e-06, -2.5052106891168703e-08, 1.6058940907182887e-10,
+        -7.643027273612204e-13, 2.7215821926997076e-15)
+_COS = (1.0, -0.4999999999999997, 0.04166666666666388, -0.0013888888888773081,
+        2.4801587277429444e-05, -2.755731639228085e-07, 2.087656190004232e-09,
+        -1.1462903400770852e-11, 4.608992189914223e-14)
 
 
 def sincos(x):
-    r"""$(\sin x, \cos x)$ by their Taylor polynomials (Horner in $x^2$), exact to
-    rounding for $|x| \le \pi/2$ (error below 1e-19; the body overturns at
-    $\alpha_c < \pi/2$) and within 1e-12 up to $|x| = 3$.
+    r"""$(\sin x, \cos x)$ by polynomials (Horner in $x^2$, nine terms each: `_SIN`,
+    `_COS`), exact to rounding for $|x| \le \pi/2$ (within 4e-16 of the library's; the
+    body overturns at $\alpha_c < \pi/2$) and within 1e-12 up to $|x| = 2$ (a step's
+    stages may pass $\alpha_c$ before the overturning is located; beyond, the error grows
+    as $x^{18}$: 1e-8 at $|x| = 3$).
 
     The rotation of the body is bounded, so the polynomials replace the library's sin and
-    cos in the flow: under the batched stepper they vectorise (a dozen multiply-adds for
+    cos in the flow: under the batched stepper they vectorise (a few multiply-adds for
     both, about 20x cheaper than `jnp.sin` plus `jnp.cos` on a CPU), and the flow
     evaluates them four times per RK4 step. Differentiable (the derivative of one is the
-    other's polynomial, to the same accuracy)."""
+    other to the same accuracy)."""
     x2 = x * x
     s = jnp.full_like(x, _SIN[-1])
     c = jnp.full_like(x, _COS[-1])
@@ -144,13 +153,15 @@ def angular_acceleration(s, theta, theta_dot, sign, lifted, a_g):
     $R_c\cos\alpha_c = H_c$, $R_c\sin(\alpha_c - \sigma\theta) = B\cos\theta -
     \sigma H_c\sin\theta$ and $R_c\cos(\alpha_c - \sigma\theta) = H_c\cos\theta +
     \sigma B\sin\theta$: one sine and one cosine for both branches (the batched fast path
-    evaluates this four times per RK4 step)."""
+    evaluates this four times per RK4 step; the inertias divide the structure's constants,
+    not the batch's arrays)."""
     M = _mass(s)
     sn, c = sincos(theta)
-    centre = -((2.0 * s.k_f * s.B**2 * c - s.W * s.H_c) * sn
-               + a_g * M * s.H_c * c) / centre_inertia(s)
-    corner = -(sign * s.W * (s.B * c - sign * s.H_c * sn)
-               + a_g * M * (s.H_c * c + sign * s.B * sn)) / s.I_O
+    ic, io = 1.0 / centre_inertia(s), 1.0 / s.I_O
+    centre = -((2.0 * s.k_f * s.B**2 * ic * c - s.W * s.H_c * ic) * sn
+               + a_g * (M * s.H_c * ic) * c)
+    corner = -(sign * (s.W * io) * (s.B * c - sign * s.H_c * sn)
+               + a_g * (M * io) * (s.H_c * c + sign * s.B * sn))
     return jnp.where(lifted, corner, centre)
 
 

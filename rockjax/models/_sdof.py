@@ -125,13 +125,15 @@ class SDOF(AbstractRockingModel):
     def vector_field(self, structure, y, mode, a_g):
         s = structure
         u, v = y[0], y[1]
-        acc = -self.law.branch(s, u, mode.sign, mode.branch) / s.mass - a_g
+        acc = -self.law.branch(s, u, mode.sign, mode.branch) * (1.0 / s.mass) - a_g
+        if not self.rigid:  # only a rigid block rests (`init`): nothing to select
+            return jnp.stack([v, acc])
         return jnp.where(mode.resting, 0.0, jnp.stack([v, acc]))
 
     def conditions(self, structure, y, mode, a_g):
         s = structure
         a = mode.sign * y[0]
-        vals = [jnp.where(mode.resting, 1.0, a), s.u_overturn - a]
+        vals = [jnp.where(mode.resting, 1.0, a) if self.rigid else a, s.u_overturn - a]
         if self.rigid:
             up = self._a_up(s)
             vals += [jnp.where(mode.resting, up - a_g, 1.0), jnp.where(mode.resting, up + a_g, 1.0)]

@@ -334,6 +334,7 @@ def test_bad_t1(column, gm, t1):
         simulate_batch(column, gm, t1)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_sharded_over_four_devices_equals_one(tmp_path, gm):
     """The batch split over 4 host devices (shard_map) gives the same results as 1 device."""
     np.save(tmp_path / "acc.npy", np.asarray(gm.accel))
@@ -446,6 +447,7 @@ def test_rigid_block_rests_until_the_uplift_threshold(column, gm):
 # ---------------------------------------------------------------- the 2-DOF body batched
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_two_spring_2dof_batch_equals_single_runs_and_diffrax(column):
     """The 2-DOF body on the stepper: a batch equals its single runs, and dopri5 agrees
     with the event-restart diffrax integrator (free rocking from two releases)."""
@@ -566,6 +568,7 @@ def test_mixed_records_on_every_method(column, mixed):
             np.testing.assert_allclose(out.peak_u[k], one.peak_u, rtol=1e-5)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_real_records_of_three_time_steps(column, ground_motions_dir):
     """The shared records at 0.005, 0.01 and 0.02 s in one batch, each to its own end +
     tail, equal single runs of `rockjax.simulate` (the real-record check of this file)."""

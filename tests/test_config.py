@@ -97,6 +97,7 @@ print(json.dumps([str(w.message) for w in caught if "JAX CPU device" in str(w.me
 
 
 @pytest.mark.skipif(rockjax._devices.usable_cores() < 2, reason="one usable core")
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_a_batch_on_one_device_of_many_cores_advises_configure_once():
     env = {k: v for k, v in os.environ.items()
            if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "ROCKJAX_CPU_DEVICES")}

@@ -39,6 +39,7 @@ def test_sdof_under_strong_motion_warns(column, short_motion):
     assert f"{float(res.peak_u) / float(column.u_crit):.0f} u_crit" in msg
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_warning_is_silenced_and_quiet_where_the_sdof_fits(column, short_motion):
     _, caught = _run(column, short_motion, fidelity_warning=False)
     assert caught == []
@@ -76,6 +77,7 @@ def test_batch_warns_once_with_a_count(column, short_motion):
     assert len(caught) == 1 and f"in {n_over} of 3 runs" in str(caught[0].message)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_cli_warns_in_its_own_syntax(tmp_path, synthetic_record):
     """5 s of the synthetic record at x1.5 (the SDOF peaks at 5.4 u_crit): short, for two
     subprocess runs."""

@@ -363,6 +363,7 @@ def cli_records(tmp_path_factory):
             for i in range(3)]
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_cli_json_plot_text_on_real_records(cli_records, tmp_path, column):
     """`rockjax fragility` on three real records (synthetic ones in a fresh clone): --json
     and --plot, the same fit as rockjax.sweep + rockjax.fragility in Python, the text

@@ -62,6 +62,7 @@ def test_corpus_physics(results, model):
         assert counts == sorted(counts, reverse=True) and counts[-1] > 0
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_long_records_with_quiet_starts():
     """`matrix.quiet_starts()`: a 40 s record with 0 to 1000 zeros in front, and one that
     starts with 2 s of zeros (generated like IELC180 and ChiChi.dat; `benchmarks/matrix.py

@@ -107,6 +107,7 @@ def test_plot_stops_at_overturning(column, singles):
     assert any(f"overturned at {t_ot:.3g} s" == ln.get_label() for ln in ax_u.get_lines())
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_simulate_cli_states_what_it_read(tmp_path, capsys, motion):
     path = tmp_path / "m.txt"
     np.savetxt(path, np.column_stack([motion.time, motion.accel / rockjax.G_STANDARD]),

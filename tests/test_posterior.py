@@ -138,6 +138,7 @@ def test_disagreeing_chains_are_flagged_loudly(toy_posterior):
     assert np.allclose(means[:2], MU[0], atol=1) and np.allclose(means[2:], MU[0] + FAR,
                                                                  atol=1)
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_serial_chains_run_blackjax_nuts_on_static_loops(toy_posterior, monkeypatch):
     # chains run one after another (chains_together=False, the fixed-step decay path) build
     # NUTS's trajectories in scans of static length instead of blackjax's while loops

@@ -242,6 +242,7 @@ def test_cli_fragility_draws_json(bands, records, column, tmp_path):
 
 
 # ------------------------------------------------------------------------ spectrum band
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_spectrum_band_of_equal_draws_is_the_spectrum(column, tmp_path):
     """Identical draws of k_f: every draw's threshold is `rockjax.overturning_spectrum`'s,
     bit for bit, and so are the median and band; `--draws` on the command line too."""

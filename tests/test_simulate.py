@@ -141,6 +141,7 @@ def test_overturning_by_ground_motion(column):
     assert float(res.peak_u) == pytest.approx(float(column.u_overturn), rel=1e-9)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_housner_limit_trend(column):
     ts = jnp.linspace(0.0, 1.5, 301)
     href = simulate(column, FreeVibration(0.10), 1.5, ts=ts, model="housner", r=0.8)

@@ -268,6 +268,7 @@ def test_pulse_spectrum_matches_the_rigid_block(stiff_block, kind):
         assert sp.amplitude_no_impact[i] >= sp.amplitude[i] * (1 - 1e-3)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_spectrum_runs_are_the_single_runs(column):
     """The Table 1 column (flexible springs), one-cosine pulses: the batched runs (each
     period on its own grid) agree with `simulate` of `rockjax.pulses.one_cosine` on the
@@ -389,6 +390,7 @@ def test_cli_spectrum_errors():
         assert msg in err, (args, err)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_simulate_batch_records_on_their_own_steps():
     """`simulate_batch(record_steps="own")` (the spectrum's engine): pulses of unrelated
     sample steps in one batch, each run on its own pulse's grid, give the summaries of the

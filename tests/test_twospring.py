@@ -23,6 +23,7 @@ def _zero_crossings(ts, u):
     return ts[i] - u[i] * (ts[i + 1] - ts[i]) / (u[i + 1] - u[i])
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_static_limit_equals_pushover(column):
     """Virtual work on the 2-DOF potential against rockjax.pushover's force/moment balance."""
     u = jnp.concatenate([jnp.linspace(-0.36, -0.001, 6), jnp.linspace(0.0005, 0.36, 9)])

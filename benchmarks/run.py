@@ -336,6 +336,8 @@ def yardstick(s, gm, n=10_000, repeats=3):
         f"floor, {n_dev} devices": lambda: floor.simulate_floor(**f_inp, scales=scales,
                                                                devices=n_dev),
         "floor, 1 device": lambda: floor.simulate_floor(**f_inp, scales=scales, devices=1),
+        f"floor (2, N) state, {n_dev} devices": lambda: floor.simulate_floor(
+            **f_inp, scales=scales, devices=n_dev, stacked=True),
         f"rockjax simplified, {n_dev} devices": lambda: rockjax_batch("simplified", None),
         "rockjax simplified, 1 device": lambda: rockjax_batch("simplified", 1),
         f"rockjax rigid_body, {n_dev} devices": lambda: rockjax_batch("rigid_body", None),
@@ -371,6 +373,7 @@ def yardstick(s, gm, n=10_000, repeats=3):
         simplified_over_floor=simp / best[f"floor, {n_dev} devices"],
         simplified_over_floor_one=best["rockjax simplified, 1 device"] / best["floor, 1 device"],
         rigid_body_over_simplified=best[f"rockjax rigid_body, {n_dev} devices"] / simp,
+        simplified_over_stacked_floor=simp / best[f"floor (2, N) state, {n_dev} devices"],
     )
     rj = outs[f"rockjax simplified, {n_dev} devices"]
     acc, out = None, dict(n=n, repeats=repeats, devices=n_dev, member_steps=steps,
@@ -414,7 +417,9 @@ def yardstick_markdown(y):
              "`simplified` and `rigid_body`, beside **the floor** (`benchmarks/floor.py`: "
              "the same RK4 of the same `simplified` SDOF without event location or "
              "impacts, plain JAX arrays of shape (N,) in one `lax.fori_loop`, sharded over "
-             "the devices the way `simulate_batch` is) and `benchmarks/numba_peer.py`, the "
+             "the devices the way `simulate_batch` is; also with u and v as one (2, N) "
+             "array, the stepper's layout, on which XLA evaluates the RK4 chain once "
+             "instead of once per output) and `benchmarks/numba_peer.py`, the "
              "same algorithm as rockjax written by hand as a scalar loop per run with "
              "`numba.prange` over the runs"
              + (f" (numba {y['numba']})" if "numba" in y else " (numba not installed)")
@@ -437,7 +442,9 @@ def yardstick_markdown(y):
                  numba_over_simplified="numba / `simplified`, all cores (target >= 4)",
                  numba_over_simplified_one="numba / `simplified`, one core",
                  rigid_body_over_simplified="`rigid_body` / `simplified`, all devices "
-                                            "(target <= 1.3)")
+                                            "(target <= 1.3)",
+                 simplified_over_stacked_floor="`simplified` / the floor with its state "
+                                               "as one (2, N) array, all devices")
     L.append("| ratio of times | measured |")
     L.append("|---|---|")
     for k, v in y["ratios"].items():

@@ -23,46 +23,25 @@ from __future__ import annotations
 
 import math
 import pathlib
+import sys
 import time
 
 import jax
 import numpy as np
-from scipy.integrate import quad
 
 jax.config.update("jax_enable_x64", True)
 
 import rockjax  # noqa: E402
 from rockjax import FreeVibration, simulate  # noqa: E402
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
+from helpers.housner import housner_block, uniform_block  # noqa: E402  (shared with the test)
+
 N_CROSSINGS = 6
 T_END = 5.3
 ZETA = 0.05
 K_FS = (1e9, 1e10, 1e11)
 M, B, H = 1000.0, 0.15, 1.0
-
-
-def uniform_block(k_f, b=B, h=H, m=M):
-    inertia = 0.5 * m * (b * b + h * h) / 3.0
-    return rockjax.RockingStructure(m_e=m / 2, m_b=m / 2, H_e=h, H_b=h, B=b, I_eg=inertia,
-                                    I_bg=inertia, k_f=k_f)
-
-
-def housner_block(s, th0, n):
-    """Zero-crossing times and the amplitudes after each impact of Housner's rigid block."""
-    W, R, a, I, r = (float(x) for x in (s.W, s.R_c, s.alpha_c, s.I_O, s.restitution))
-
-    def quarter(amp):
-        def rate(th):
-            return math.sqrt(2 * W * R * (math.cos(a - amp) - math.cos(a - th)) / I)
-        return quad(lambda x: 2 * x / rate(amp - x * x), 0.0, math.sqrt(amp), limit=200)[0]
-
-    times, amps, t, amp = [], [th0], quarter(th0), th0
-    for _ in range(n):
-        times.append(t)
-        amp = a - math.acos(math.cos(a) + r * (math.cos(a - amp) - math.cos(a)))
-        amps.append(amp)
-        t += 2 * quarter(amp)
-    return np.asarray(times), np.asarray(amps)
 
 
 def zero_crossings(ts, u):
@@ -72,7 +51,7 @@ def zero_crossings(ts, u):
 
 def errors(k_f, zeta, n=N_CROSSINGS, t_end=T_END):
     """(largest crossing-time error, largest amplitude error, status) over n crossings."""
-    s = uniform_block(k_f)
+    s = uniform_block(k_f, B, H, M)
     damping = 2.0 * zeta * math.sqrt(k_f * float(s.mass) / 2.0)
     th0 = 0.6 * float(s.alpha_c)
     ts = np.linspace(0.0, t_end, int(round(t_end * 1e4)) + 1)

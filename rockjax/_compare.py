@@ -26,15 +26,12 @@ import dataclasses
 import math
 import warnings
 
-import jax.numpy as jnp
 import numpy as np
 
 from ._errors import ParameterError
-from ._fragility import fragility, FragilityResult, limit_label, parse_limit
-from ._kinematics import theta_from_u
+from ._fragility import fragility, FragilityResult, limit_label, parse_limit, peak_theta
 from ._status import STATUS
 from ._sweep import sweep, SweepResult
-from .models import get_model
 
 __all__ = ["compare_models", "ModelComparison", "ks_distance"]
 
@@ -67,11 +64,7 @@ def peak_rotation(result: SweepResult) -> np.ndarray:
     """The peak rotation [rad] of every run of a sweep (n_records, n_scales): θ(peak |u|)
     by the model's uplift mapping (`rockjax.theta_from_u`; rigid for `housner`), +inf for
     an overturned run, NaN for a run that failed (max_impacts, solver_failure)."""
-    m = get_model(result.model, result.impact)
-    theta = (m.theta_uplift_of_u(result.structure, jnp.asarray(result.peak_u))[0]
-             if m.kinematics_of_u else theta_from_u(result.structure, result.peak_u))
-    theta = np.abs(np.asarray(theta, float))
-    theta = np.where(result.status == STATUS["overturned"], np.inf, theta)
+    theta = np.where(result.status == STATUS["overturned"], np.inf, peak_theta(result))
     ok = np.isin(result.status, (STATUS["completed"], STATUS["overturned"]))
     return np.where(ok, theta, np.nan)
 

@@ -131,6 +131,15 @@ def limit_label(kind, threshold):
     return "overturned" if kind == "overturned" else f"{kind} >= {threshold:g} {unit[kind]}"
 
 
+def peak_theta(result: SweepResult) -> np.ndarray:
+    """|θ(peak |u|)| [rad] of every run (n_records, n_scales), by the model's uplift
+    mapping (`rockjax.theta_from_u`; rigid for `housner`), whatever the run's status."""
+    m = get_model(result.model, result.impact)
+    theta = (m.theta_uplift_of_u(result.structure, jnp.asarray(result.peak_u))[0]
+             if m.kinematics_of_u else theta_from_u(result.structure, result.peak_u))
+    return np.abs(np.asarray(theta, float))
+
+
 def exceedances(result: SweepResult, kind, threshold=None) -> np.ndarray:
     """Whether each run (n_records, n_scales) reached the limit state: overturned, or peak
     uplift >= threshold [m], or peak rotation θ(peak |u|) >= threshold [rad] (the model's
@@ -141,10 +150,7 @@ def exceedances(result: SweepResult, kind, threshold=None) -> np.ndarray:
         return over
     if kind == "uplift":
         return over | (result.peak_uplift >= threshold)
-    m = get_model(result.model, result.impact)
-    theta = (m.theta_uplift_of_u(result.structure, jnp.asarray(result.peak_u))[0]
-             if m.kinematics_of_u else theta_from_u(result.structure, result.peak_u))
-    return over | (np.abs(np.asarray(theta)) >= threshold)
+    return over | (peak_theta(result) >= threshold)
 
 
 # ------------------------------------------------------------------------------ the fit

@@ -142,8 +142,8 @@ def example_folder(tmp_path_factory):
 
 
 #: examples run in the slow set only (the suite in 8 minutes, issue 26; CI runs them):
-#: a fit, which tests/test_fit.py checks in detail
-SLOW_EXAMPLES = {"identification.fit_decay"}
+#: the fits, which tests/test_fit.py checks in detail
+SLOW_EXAMPLES = {"identification.fit_decay", "identification.FitResult.report"}
 
 
 @pytest.mark.parametrize("doc", [

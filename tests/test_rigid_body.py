@@ -330,6 +330,7 @@ def _check_derivatives(peak, g, p0):
     assert float(g[0]) != 0.0 and float(g[1]) != 0.0
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_forward_derivatives_match_finite_differences(column):
     """d(peak |u|)/d(k_f, r) through lift-offs and landings under the sine (diffrax,
     forward mode: `jax.jacfwd`)."""

@@ -153,6 +153,7 @@ def test_housner_limit_trend(column):
     assert errs[2] < 1e-3
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_after_uplift_rule_counts_fewer_impacts(column):
     ts = jnp.linspace(0.0, 4.0, 801)
     paper = simulate(column, FreeVibration(0.10), 4.0, ts=ts)

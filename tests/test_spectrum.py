@@ -201,6 +201,7 @@ def stiff_block():
     return uniform_block(1e10)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_rk4_rigid_body_crosses_the_springs_after_a_landing(stiff_block):
     """Regression: on stiff springs a landing and the lift-off on the other side share a
     substep; rk4 used to find the landing condition's root at the landing itself, landing

@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers.housner import housner_block, uniform_block
 from scipy.integrate import quad, solve_ivp
 
 import rockjax
@@ -195,35 +196,6 @@ def test_bad_model_settings():
 
 
 # ------------------------------------------------ the rigid limit: Housner's rocking block
-def _uniform_block(k_f, b=0.15, h=1.0, m=1000.0):
-    """A uniform block 2b x 2h of mass m, split into two equal halves at the centroid."""
-    inertia = 0.5 * m * (b * b + h * h) / 3.0
-    return rockjax.RockingStructure(m_e=m / 2, m_b=m / 2, H_e=h, H_b=h, B=b, I_eg=inertia,
-                                    I_bg=inertia, k_f=k_f)
-
-
-def _housner_block(s, th0, n):
-    """Housner's rigid block released at rest from th0: the times of its first n zero
-    crossings (exact quarter periods by energy quadrature) and its amplitudes after each
-    impact, from the energy balance cos(a - th_k+1) - cos(a) = r (cos(a - th_k) - cos(a))
-    (Eq. 2: the kinetic energy at an impact falls by r)."""
-    W, R, a, I, r = (float(x) for x in (s.W, s.R_c, s.alpha_c, s.I_O, s.restitution))
-
-    def quarter(amp):
-        def rate(th):
-            return math.sqrt(2 * W * R * (math.cos(a - amp) - math.cos(a - th)) / I)
-        # th = amp - x^2 removes the integrable singularity at the turning point
-        return quad(lambda x: 2 * x / rate(amp - x * x), 0.0, math.sqrt(amp), limit=200)[0]
-
-    times, amps, t, amp = [], [th0], quarter(th0), th0
-    for _ in range(n):
-        times.append(t)
-        amp = a - math.acos(math.cos(a) + r * (math.cos(a - amp) - math.cos(a)))
-        amps.append(amp)
-        t += 2 * quarter(amp)
-    return np.asarray(times), np.asarray(amps)
-
-
 @pytest.fixture(scope="module")
 def block_errors():
     """Relative errors of the 2-DOF body (impact contact) against Housner's block released
@@ -232,7 +204,7 @@ def block_errors():
     n, T = 5, 4.6
     ts = np.linspace(0.0, T, 46001)
     for k_f in (1e9, 1e10, 1e11):
-        s = _uniform_block(k_f)
+        s = uniform_block(k_f)
         th0 = 0.6 * float(s.alpha_c)
         res = simulate(s, FreeVibration(float(rockjax.u_from_theta(s, th0))), T, ts=ts,
                        model="two_spring_2dof")
@@ -240,7 +212,7 @@ def block_errors():
         zc = _zero_crossings(ts, th)
         impacts = np.asarray(res.impact_times)
         impacts = impacts[np.isfinite(impacts)]
-        t_ref, a_ref = _housner_block(s, th0, n)
+        t_ref, a_ref = housner_block(s, th0, n)
         edges = np.concatenate([[0.0], zc[:n]])
         amps = [np.max(np.abs(th[(ts >= lo) & (ts < hi)])) for lo, hi in zip(edges[:-1], edges[1:])]
         out[k_f] = dict(status=res.status_name, zc=zc, impacts=impacts, t_ref=t_ref,
@@ -273,7 +245,7 @@ def _damped_block_errors(k_f, zeta=0.05, n=6, T=5.3):
     """(crossing-time error, amplitude error) of the 2-DOF body with compression-only
     dashpots of `zeta` of critical for the vertical mode on both springs, c_f = 2 zeta
     sqrt(k_f m / 2), against Housner's block over n crossings (release from 0.6 alpha)."""
-    s = _uniform_block(k_f)
+    s = uniform_block(k_f)
     c_f = 2.0 * zeta * math.sqrt(k_f * float(s.mass) / 2.0)
     th0 = 0.6 * float(s.alpha_c)
     ts = np.linspace(0.0, T, int(round(T * 1e4)) + 1)
@@ -282,7 +254,7 @@ def _damped_block_errors(k_f, zeta=0.05, n=6, T=5.3):
     assert res.status_name == "completed"
     th = np.asarray(res.theta)
     zc = _zero_crossings(ts, th)[:n]
-    t_ref, a_ref = _housner_block(s, th0, n)
+    t_ref, a_ref = housner_block(s, th0, n)
     edges = np.concatenate([[0.0], zc])
     amps = [np.max(np.abs(th[(ts >= lo) & (ts < hi)])) for lo, hi in zip(edges[:-1], edges[1:])]
     return np.max(np.abs(zc / t_ref - 1)), np.max(np.abs(np.asarray(amps) / a_ref[:n] - 1))
@@ -339,6 +311,7 @@ def _lagrange_autodiff(s, model, q, qd, pivot, cl, cr, ag):
     return jnp.linalg.solve(M, Q + dTdq - dp), M
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_written_out_equations_match_autodiff_lagrange(column):
     """`accelerations` and `mass_matrix` (closed forms, the fast path's) against Lagrange's
     equations from autodiff of the kinetic energy, at random states, pivots, contacts,

@@ -22,15 +22,32 @@ import rockjax
 CASES = [*matrix.records(), *matrix.releases(rockjax.mcmanus_column())]
 
 
+#: the columns of the default suite; dopri5's runs in the slow set (the suite in 8 minutes,
+#: issue 26; CI runs it)
+FAST = ("diffrax", "rk4")
+SLOW = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
-def results():
-    res, _ = matrix.matrix()
+def fast_results():
+    res, _ = matrix.matrix(methods=FAST)
     return res
 
 
-@pytest.mark.parametrize("method", ["rk4", "dopri5"])
+@pytest.fixture(scope="module")
+def all_results(fast_results):
+    res, _ = matrix.matrix(methods=("dopri5",))
+    return {**fast_results, **res}
+
+
+def _results(request, method):
+    return request.getfixturevalue("fast_results" if method in FAST else "all_results")
+
+
+@pytest.mark.parametrize("method", ["rk4", pytest.param("dopri5", marks=SLOW)])
 @pytest.mark.parametrize("model", matrix.MODELS)
-def test_integrators_agree(results, model, method):
+def test_integrators_agree(request, model, method):
+    results = _results(request, method)
     bad = []
     for case in CASES:
         same_status, same_n, rel = matrix.agreement(results, model, method, case)
@@ -40,26 +57,26 @@ def test_integrators_agree(results, model, method):
     assert not bad, "\n".join(bad)
 
 
+@pytest.mark.parametrize("method", [*FAST, pytest.param("dopri5", marks=SLOW)])
 @pytest.mark.parametrize("model", matrix.MODELS)
-def test_corpus_physics(results, model):
+def test_corpus_physics(request, model, method):
     """Integrator-independent expectations on the corpus (every integrator's cells)."""
-    for method in matrix.METHODS:
-        cells = results[model, method]
-        # a body at rest at u = 0 under zero forcing stays there: no phantom impacts
-        assert cells["zero forcing, at rest"] == (0.0, 0, "completed")
-        assert cells["release at rest"] == (0.0, 0, "completed")
-        assert cells["release at u_overturn"][2] == "overturned"
-        # leading zeros delay the response and change nothing else; the runs share one
-        # end time, so more zeros leave less time after the motion, and no more impacts
-        # (with no zero in front the record starts on a jump from rest: another forcing)
-        ref = cells["leading zeros 1"]
-        counts = [ref[1]]
-        for n in (10, 100, 1000):
-            peak, n_imp, status = cells[f"leading zeros {n}"]
-            assert status == ref[2]
-            assert peak == pytest.approx(ref[0], rel=1e-7)
-            counts.append(n_imp)
-        assert counts == sorted(counts, reverse=True) and counts[-1] > 0
+    cells = _results(request, method)[model, method]
+    # a body at rest at u = 0 under zero forcing stays there: no phantom impacts
+    assert cells["zero forcing, at rest"] == (0.0, 0, "completed")
+    assert cells["release at rest"] == (0.0, 0, "completed")
+    assert cells["release at u_overturn"][2] == "overturned"
+    # leading zeros delay the response and change nothing else; the runs share one
+    # end time, so more zeros leave less time after the motion, and no more impacts
+    # (with no zero in front the record starts on a jump from rest: another forcing)
+    ref = cells["leading zeros 1"]
+    counts = [ref[1]]
+    for n in (10, 100, 1000):
+        peak, n_imp, status = cells[f"leading zeros {n}"]
+        assert status == ref[2]
+        assert peak == pytest.approx(ref[0], rel=1e-7)
+        counts.append(n_imp)
+    assert counts == sorted(counts, reverse=True) and counts[-1] > 0
 
 
 @pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it

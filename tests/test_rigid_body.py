@@ -282,6 +282,7 @@ def quake():
     return GroundMotion.from_record(rec, scale=1.5)
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_every_integrator_and_the_batch_agree(column, quake):
     runs = {m: simulate(column, quake, 5.0, model="rigid_body", method=m)
             for m in ("rk4", "dopri5")}

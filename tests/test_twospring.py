@@ -134,6 +134,7 @@ def release(column):
     return simulate(column, FreeVibration(0.10), 0.6, ts=ts, model="two_spring_2dof")
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_first_zero_crossing_matches_rigid_rocking(column, release):
     t_rigid = _rigid_first_zero_crossing(column, 0.10)
     t_2dof = _zero_crossings(release.ts, release.u)[0]
@@ -260,6 +261,7 @@ def _damped_block_errors(k_f, zeta=0.05, n=6, T=5.3):
     return np.max(np.abs(zc / t_ref - 1)), np.max(np.abs(np.asarray(amps) / a_ref[:n] - 1))
 
 
+@pytest.mark.slow  # out of the default suite (the suite in 8 minutes, issue 26); CI runs it
 def test_damped_body_on_housners_block():
     """Issue 27: the undamped body keeps the vertical vibration that each rocking impact
     starts (the landing corner stops on its unloaded spring and must take the weight);

@@ -73,10 +73,9 @@ def _kernel(p, table, scale, *, n_rec, dt, t1, n_steps, substeps, stacked=False)
     def acc(u, a_g):
         return -_force(p, u) * inv_m - a_g
 
-    def body(i, c):  # one RK4 step: substep j of record interval k
-        if stacked:
-            return body_stacked(i, *c)
-        u, v, peak = c
+    def step(i):
+        """RK4 step i (substep j of record interval k): its length [s] and the ground
+        acceleration at its start, middle and end [m/s²] (the record zero after its end)."""
         k, j = i // substeps, i % substeps
         hk = jnp.minimum(dt, t1 - k * dt)
         a_lo = jnp.where(k < n_rec - 1, table[k], 0.0) * scale
@@ -86,6 +85,13 @@ def _kernel(p, table, scale, *, n_rec, dt, t1, n_steps, substeps, stacked=False)
         a0 = a_lo + slope * (j * h)
         am = a_lo + slope * ((j + 0.5) * h)
         a1 = a_lo + slope * ((j + 1) * h)
+        return h, a0, am, a1
+
+    def body(i, c):  # one RK4 step
+        if stacked:
+            return body_stacked(i, *c)
+        u, v, peak = c
+        h, a0, am, a1 = step(i)
         k1u, k1v = v, acc(u, a0)
         k2u, k2v = v + 0.5 * h * k1v, acc(u + 0.5 * h * k1u, am)
         k3u, k3v = v + 0.5 * h * k2v, acc(u + 0.5 * h * k2u, am)
@@ -98,15 +104,7 @@ def _kernel(p, table, scale, *, n_rec, dt, t1, n_steps, substeps, stacked=False)
         return jnp.stack([y[1], acc(y[0], a_g)])
 
     def body_stacked(i, y, peak):  # the same step on the state as one (2, N) array
-        k, j = i // substeps, i % substeps
-        hk = jnp.minimum(dt, t1 - k * dt)
-        a_lo = jnp.where(k < n_rec - 1, table[k], 0.0) * scale
-        a_hi = jnp.where(k + 1 <= n_rec - 1, table[jnp.minimum(k + 1, n_tab - 1)], 0.0) * scale
-        slope = (a_hi - a_lo) / dt
-        h = hk / substeps
-        a0 = a_lo + slope * (j * h)
-        am = a_lo + slope * ((j + 0.5) * h)
-        a1 = a_lo + slope * ((j + 1) * h)
+        h, a0, am, a1 = step(i)
         k1 = flow(y, a0)
         k2 = flow(y + 0.5 * h * k1, am)
         k3 = flow(y + 0.5 * h * k2, am)

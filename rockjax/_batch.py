@@ -660,11 +660,13 @@ def _per_member(fn, structure, x, N):
 def _assemble(plan, res, structure, N, ts, summary_only, t_end):
     """A Summary, or a Response with a leading batch axis of length N."""
     peak_u = jnp.asarray(res["peak_u"])
+    if plan.method != "diffrax":  # the stepper's peak is of the model's peak_coordinate
+        peak_u = _per_member(plan.model.u_of_peak, structure, peak_u, N)
     peak_up = _per_member(lambda s, p: plan.model.peak_uplift(s, p, jnp.asarray(
         res["peak_uplift"])), structure, peak_u, N)
     summary = Summary(peak_uplift=peak_up, t_end=jnp.asarray(t_end, peak_u.dtype),
-                      **{k: jnp.asarray(res[k]) for k in
-                         ("peak_u", "n_impacts", "status", "t_overturn")})
+                      peak_u=peak_u, **{k: jnp.asarray(res[k]) for k in
+                                        ("n_impacts", "status", "t_overturn")})
     if summary_only:
         return summary
     out = {k: res[k] for k in ("u", "v", "theta", "uplift", "impact_times")}

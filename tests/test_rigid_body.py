@@ -18,6 +18,7 @@ from scipy.integrate import solve_ivp
 import rockjax
 from rockjax import FreeVibration, GroundMotion, simulate, simulate_batch
 from rockjax.models import linearised_frequency
+from rockjax.models._rigidbody import RigidBodyMode
 
 N_TS = 3001  # output times of the free vibrations (one compile for all of them)
 
@@ -253,6 +254,32 @@ def test_outputs_follow_the_kinematics(column, half_overturn):
     u_ot = rockjax.RigidBody().u_overturn(column)
     assert float(u_ot) == pytest.approx(float(rockjax.u_from_theta(column, column.alpha_c)),
                                         rel=1e-14)
+
+
+def test_peak_coordinate_is_theta(column):
+    """The batched stepper tracks the peak |theta| of the rigid body (no sine or cosine at
+    the step ends) and reports `u_of_peak` of it: |u| of the observed state in both modes,
+    increasing in |theta|, and u_overturn exactly at alpha_c (the limit it clips at)."""
+    m = rockjax.RigidBody()
+    ac = float(column.alpha_c)
+    tu = float(rockjax.theta_from_u(column, column.u_crit))
+    th = np.concatenate([np.linspace(-ac, ac, 401), [tu, -tu, 0.0]])
+    for lifted in (False, True):
+        keep = (np.abs(th) > tu) if lifted else (np.abs(th) <= tu)
+        for t in th[keep]:
+            y = jnp.array([t, 0.3])
+            mode = RigidBodyMode(sign=jnp.sign(t) if t else 1.0,
+                                 lifted=jnp.asarray(lifted),
+                                 settled=jnp.asarray(False))
+            q, dq = m.peak_coordinate(column, y, mode)
+            assert float(q) == t and float(dq) == 0.3
+            u = float(m.observe(column, y, mode).u)
+            assert float(m.u_of_peak(column, abs(float(q)))) == pytest.approx(abs(u),
+                                                                             rel=1e-14, abs=1e-18)
+    grid = np.linspace(0.0, ac, 2001)
+    assert np.all(np.diff(np.asarray(m.u_of_peak(column, grid))) > 0)
+    assert float(m.peak_limit(column)) == ac
+    assert float(m.u_of_peak(column, ac)) == float(m.u_overturn(column))
 
 
 def test_free_vibration_settles_on_the_springs(column):

@@ -201,6 +201,7 @@ class _AbstractStepper(AbstractIntegrator):
         out = _run_jit(model, structure, eqx.tree_at(lambda e: e.u0, table, table.u0[None]),
                        jnp.asarray(r, dtype), jnp.asarray(t1f, dtype), cfg)
         out = {k: v[0] for k, v in out.items()}
+        out["peak_u"] = model.u_of_peak(structure, out["peak_u"])
         out["peak_uplift"] = model.peak_uplift(structure, out["peak_u"], out["peak_uplift"])
         grid = np.minimum(np.arange(n_steps + 1) * dt_rec, t1f)
         ts_n = np.asarray(ts, float) if ts is not None else grid

@@ -239,10 +239,10 @@ def piece(model, cfg, s, r, st, tau, L, t_start, a0, da, y1=None):
 
 def _advance(model, cfg, s, r, st, ye, hp, which, event, step, failed, t_ev, a_ev):
     """The bookkeeping of a piece: peaks, the jump at an event, the record."""
-    obs0 = per_member(model.observe, s)(st.y, st.mode)
-    obs1 = per_member(model.observe, s)(ye, st.mode)
-    u_ot = per_member(lambda s_, _: model.u_overturn(s_), s)(hp)
-    peak = piece_peak(obs0.u, obs0.v, obs1.u, obs1.v, hp)
+    q0, dq0 = per_member(model.peak_coordinate, s)(st.y, st.mode)
+    q1, dq1 = per_member(model.peak_coordinate, s)(ye, st.mode)
+    u_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(hp)
+    peak = piece_peak(q0, dq0, q1, dq1, hp)
     up = per_member(model.tracked_uplift, s)(ye, st.mode)
     tally = tree_where(step, tally_peak(st.tally, peak, up, u_ot), st.tally)
     yj, mj, flags = per_member(model.jump, s)(ye, st.mode, which, r, a_ev)
@@ -343,10 +343,11 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     easy = active & ok & ~jnp.any(fired(tr), axis=0)
     hard = active & ~easy
     # the easy members: exactly a piece without an event (its peak, then the step's end)
-    obs0 = per_member(model.observe, s)(st.y, st.mode)
-    obs1 = per_member(model.observe, s)(tr.y1, st.mode)
-    u_ot = per_member(lambda s_, _: model.u_overturn(s_), s)(a0)
-    peak = piece_peak(obs0.u, obs0.v, obs1.u, obs1.v, L - tau)
+    q0, dq0 = per_member(model.peak_coordinate, s)(st.y, st.mode)
+    q1, dq1 = per_member(model.peak_coordinate, s)(tr.y1, st.mode)
+    u_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(a0)
+    # the interior turn only where it could raise a member's peak (bit for bit the same)
+    peak = piece_peak(q0, dq0, q1, dq1, L - tau, st.tally.peak_u)
     up = per_member(model.tracked_uplift, s)(tr.y1, st.mode)
     st = eqx.tree_at(lambda m: (m.y, m.tally), st,
                      (jnp.where(easy, tr.y1, st.y),
@@ -464,7 +465,8 @@ def run(model, structure, excitation, r, t1, cfg: StepperConfig):
         omega = per_member(lambda s_, _: model.frequency(s_), s)(u0)
         unstable = omega * (dt_rec / cfg.substeps) > 2.5
     n_store = cfg.max_impacts if cfg.full else 0
-    tally = per_member(lambda s_, y_, m_, f_: tally_start(model, s_, y_, m_, n_store, f_), s)(
+    tally = per_member(lambda s_, y_, m_, f_: tally_start(model, s_, y_, m_, n_store, f_,
+                                                      coordinate=True), s)(
         y, mode, unstable)
     st = Member(y=y, mode=mode, tally=tally, hprop=jnp.full((N,), jnp.inf, y.dtype))
     n_tab = table.shape[-1]
@@ -502,7 +504,7 @@ def run(model, structure, excitation, r, t1, cfg: StepperConfig):
 def _results(model, cfg, s, start, final, outs):
     t = final.tally
     res = dict(
-        peak_u=t.peak_u,
+        peak_u=t.peak_u,  # of the model's peak_coordinate: the caller applies u_of_peak
         peak_uplift=t.peak_uplift,  # tracked; the caller applies model.peak_uplift
         n_impacts=t.n_impacts,
         status=t.status,

@@ -27,12 +27,19 @@ class Tally(eqx.Module):
     rest: jnp.ndarray
 
 
-def tally_start(model, structure, y, mode, n_store, failed=False):
+def tally_start(model, structure, y, mode, n_store, failed=False, coordinate=False):
     """The record at t = 0: overturned already if |u0| >= u_overturn; `failed` marks a
-    member refused up front (e.g. a fixed step beyond its stability limit)."""
+    member refused up front (e.g. a fixed step beyond its stability limit). With
+    `coordinate`, the peak is of the model's `peak_coordinate` (the batched stepper's)."""
     obs = model.observe(structure, y, mode)
     u_ot = model.u_overturn(structure)
     over = jnp.abs(obs.u) >= u_ot
+    if coordinate:
+        q_ot = model.peak_limit(structure)
+        peak = jnp.where(over, q_ot, jnp.minimum(
+            jnp.abs(model.peak_coordinate(structure, y, mode)[0]), q_ot))
+    else:
+        peak = jnp.minimum(jnp.abs(obs.u), u_ot)
     failed = jnp.asarray(failed) & ~over
     dtype = jnp.result_type(obs.u)
     status = jnp.where(over, STATUS["overturned"],
@@ -40,7 +47,7 @@ def tally_start(model, structure, y, mode, n_store, failed=False):
     return Tally(
         n_impacts=jnp.zeros((), jnp.int32),
         impact_times=jnp.full((n_store,), jnp.inf, dtype),
-        peak_u=jnp.minimum(jnp.abs(obs.u), u_ot),
+        peak_u=peak,
         peak_uplift=jnp.maximum(model.tracked_uplift(structure, y, mode), 0.0),
         status=status.astype(jnp.int32),
         t_overturn=jnp.where(over, 0.0, jnp.inf).astype(dtype),

@@ -110,6 +110,23 @@ class AbstractRockingModel(eqx.Module):
         integrator saw at its step ends (`tracked`)."""
 
     @abc.abstractmethod
+    def peak_coordinate(self, structure, y, mode):
+        """`(q, dq/dt)`: the coordinate whose peak |q| the batched stepper tracks over a
+        step (the maximum of its cubic Hermite interpolant), and its rate; |u| is an
+        increasing function of |q| (`u_of_peak`). u [m] and v [m/s] of `observe` for the
+        SDOF models; a model whose u is costly to observe tracks a state variable
+        (`RigidBody`: theta, where u would take a sine and a cosine at both ends of every
+        step)."""
+
+    @abc.abstractmethod
+    def peak_limit(self, structure):
+        """|q| of `peak_coordinate` at overturning (`u_overturn` [m] where q is u)."""
+
+    @abc.abstractmethod
+    def u_of_peak(self, structure, q):
+        """The peak |u| [m] of a peak |q| of `peak_coordinate` (q itself where q is u)."""
+
+    @abc.abstractmethod
     def theta_uplift_of_u(self, structure, u):
         """(theta [rad], uplift [m]) as functions of u [m], for output times between grid
         points; only where `kinematics_of_u` (else it raises `NotImplementedError`)."""

@@ -39,7 +39,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._kinematics import _lift_off_rotation, theta_from_u, uplift, uplift_from_theta
+from .._kinematics import _lift_off_rotation, theta_from_u, u_from_theta, uplift, uplift_from_theta
 from ._base import AbstractRockingModel, Flags, Observed
 from ._sdof import nonzero_sign
 
@@ -292,6 +292,18 @@ class RigidBody(AbstractRockingModel):
         s = structure
         tu = _lift_off_rotation(s)
         return s.u_crit + s.R_e * (jnp.sin(s.alpha_e - tu) - jnp.sin(s.alpha_e - s.alpha_c))
+
+    def peak_coordinate(self, structure, y, mode):
+        # theta and its rate: |u| increases with |theta| up to alpha_c, and observing u
+        # would take a sine and a cosine at both ends of every step
+        return y[0], y[1]
+
+    def peak_limit(self, structure):
+        return structure.alpha_c
+
+    def u_of_peak(self, structure, q):
+        return jnp.where(q >= structure.alpha_c, self.u_overturn(structure),
+                         u_from_theta(structure, q))
 
     def tracked_uplift(self, structure, y, mode):
         return jnp.zeros_like(y[0])  # the peak uplift follows from the peak |u|

@@ -213,6 +213,15 @@ class SDOF(AbstractRockingModel):
     def u_overturn(self, structure):
         return structure.u_overturn
 
+    def peak_coordinate(self, structure, y, mode):
+        return y[0], y[1]  # (u, v)
+
+    def peak_limit(self, structure):
+        return self.u_overturn(structure)
+
+    def u_of_peak(self, structure, q):
+        return q
+
     def tracked_uplift(self, structure, y, mode):
         return jnp.zeros_like(y[0])  # the peak uplift follows from the peak |u|
 

@@ -120,6 +120,16 @@ class TwoSpring2DOF(AbstractRockingModel):
     contacts: ClassVar[int] = 2  # two corners, each lifting off and landing on its own
     impacts_accumulate: ClassVar[bool] = False
 
+    def peak_coordinate(self, structure, y, mode):
+        obs = self.observe(structure, y, mode)
+        return obs.u, obs.v
+
+    def peak_limit(self, structure):
+        return self.u_overturn(structure)
+
+    def u_of_peak(self, structure, q):
+        return q
+
     def tracked_uplift(self, structure, y, mode):
         return self.observe(structure, y, mode).uplift
 

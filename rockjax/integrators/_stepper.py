@@ -333,24 +333,34 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     da = (a1 - a0) / L
     tau = jnp.zeros_like(a0)
     active = ~st.tally.done & (tau < L)
-    # the trial step of the whole batch: its end and the conditions at both ends (their
-    # rates, for locating a root, only in the sub-batch of the members with an event)
+    # the trial step of the whole batch: its end and the conditions there (their rates,
+    # for locating a root, only in the sub-batch of the members with an event)
     y1, _ = per_member(lambda *a: rk_step(model, *a, cfg), s)(st.y, st.mode, tau, L - tau, a0, da)
-    g0 = per_member(model.conditions, s)(st.y, st.mode, a0 + da * tau)
     g1 = per_member(model.conditions, s)(y1, st.mode, a0 + da * (tau + (L - tau)))
-    tr = Trial(y1, None, g0, None, g1, None)
-    ok = jnp.all(jnp.isfinite(tr.y1), axis=0)
-    easy = active & ok & ~jnp.any(fired(tr), axis=0)
+    live = active & jnp.all(jnp.isfinite(y1), axis=0)
+    # `fired`: a condition below 0 at the step's end fires and one above 0 does not,
+    # whatever it was at the start; the start's conditions decide only for one exactly at
+    # 0 (a body resting on its surface, e.g. at u = 0 through a record's leading zeros),
+    # so they are evaluated only in the steps where a member has one (the same members
+    # are easy, bit for bit)
+    low = jnp.min(g1, axis=0)  # the lowest condition of each member at the step's end
+
+    def exact(_):  # both ends again (g1 is not kept: it fuses into the reduction)
+        g0 = per_member(model.conditions, s)(st.y, st.mode, a0 + da * tau)
+        g1 = per_member(model.conditions, s)(y1, st.mode, a0 + da * (tau + (L - tau)))
+        return ~jnp.any(fired(Trial(y1, None, g0, None, g1, None)), axis=0)
+
+    easy = live & jax.lax.cond(jnp.any(live & (low == 0)), exact, lambda _: low > 0, None)
     hard = active & ~easy
     # the easy members: exactly a piece without an event (its peak, then the step's end)
     q0, dq0 = per_member(model.peak_coordinate, s)(st.y, st.mode)
-    q1, dq1 = per_member(model.peak_coordinate, s)(tr.y1, st.mode)
+    q1, dq1 = per_member(model.peak_coordinate, s)(y1, st.mode)
     u_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(a0)
     # the interior turn only where it could raise a member's peak (bit for bit the same)
     peak = piece_peak(q0, dq0, q1, dq1, L - tau, st.tally.peak_u)
-    up = per_member(model.tracked_uplift, s)(tr.y1, st.mode)
+    up = per_member(model.tracked_uplift, s)(y1, st.mode)
     st = eqx.tree_at(lambda m: (m.y, m.tally), st,
-                     (jnp.where(easy, tr.y1, st.y),
+                     (jnp.where(easy, y1, st.y),
                       tree_where(easy, tally_peak(st.tally, peak, up, u_ot), st.tally)))
 
     width = _compact_width(n)

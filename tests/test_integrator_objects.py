@@ -135,7 +135,8 @@ def test_every_method_of_the_abstract_model_is_abstract():
 def test_models_declare_their_capabilities_as_data(name):
     m = get_model(name)
     assert isinstance(m, AbstractRockingModel)
-    for attr in ("kinematics_of_u", "recrossing_conditions", "impacts_accumulate"):
+    for attr in ("kinematics_of_u", "recrossing_conditions", "impacts_accumulate",
+                 "peak_from_state"):
         assert isinstance(getattr(m, attr), bool)
     assert isinstance(m.contacts, int) and m.contacts >= 1
     # the fixed-step stepper's pieces per step: as the models' own defaults were
@@ -150,6 +151,17 @@ def test_models_declare_their_capabilities_as_data(name):
     else:
         theta, up = m.theta_uplift_of_u(S, 0.01)
         assert np.isfinite(float(theta)) and np.isfinite(float(up))
+    # the peak's coordinate: the state's first component and its rate where declared so,
+    # else u and v; the peak |u| of its value at overturning is u_overturn
+    y, mode = m.init(S.evaluated(), 0.3 * float(S.u_crit), 0.02, 1.0, True)
+    q, dq = m.peak_coordinate(S.evaluated(), y, mode)
+    obs = m.observe(S.evaluated(), y, mode)
+    want = (y[0], y[1]) if m.peak_from_state else (obs.u, obs.v)
+    assert (float(q), float(dq)) == (float(want[0]), float(want[1]))
+    assert float(m.u_of_peak(S.evaluated(), abs(q))) == pytest.approx(abs(float(obs.u)),
+                                                                      rel=1e-14)
+    assert float(m.u_of_peak(S.evaluated(), m.peak_limit(S.evaluated()))) == float(
+        m.u_overturn(S.evaluated()))
 
 
 def test_a_model_missing_a_method_cannot_be_built():

@@ -98,8 +98,6 @@ def piece_peak(u0, v0, u1, v1, h, floor=None):
     ends is returned instead (the same running peak, bit for bit). Within a step only a few
     members turn with a chance to raise their peak; the turn's Newton iterations (three
     divisions) then run only in the steps where one does (`jax.lax.cond`)."""
-    if floor is not None:  # computed once, read by the test and the peak (not fused twice)
-        u0, v0, u1, v1 = jax.lax.optimization_barrier((u0, v0, u1, v1))
     m0 = v0 * h
     m1 = v1 * h
     turn = v0 * v1 < 0

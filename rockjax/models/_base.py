@@ -140,6 +140,11 @@ class AbstractRockingModel(eqx.Module):
     #: settling rigid block, collapsed onto the jump when it comes within one step. The
     #: stepper's default for its `grazing_roots` setting.
     recrossing_conditions: eqx.AbstractClassVar[bool]
+    #: whether `peak_coordinate` reads components of the state (free: the SDOF models'
+    #: u and v, the rigid body's theta): the batched stepper then evaluates a step's
+    #: interior turn only where it could raise a member's peak (for a coordinate computed
+    #: from the state, as the 2-DOF body's u, evaluating it twice would cost more)
+    peak_from_state: eqx.AbstractClassVar[bool]
     #: contacts whose events are independent of each other (the 2-DOF body's two corners:
     #: 2; the SDOF and the rigid body: 1), for the events a step may hold
     contacts: eqx.AbstractClassVar[int]

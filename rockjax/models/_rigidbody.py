@@ -212,6 +212,7 @@ class RigidBody(AbstractRockingModel):
     # a landing and the next lift-off may share a step when theta_u is small: 4 pieces
     # hold landing, lift-off and a third event (as for the SDOF models)
     contacts: ClassVar[int] = 1
+    peak_from_state: ClassVar[bool] = True
     impacts_accumulate: ClassVar[bool] = False
 
     def init(self, structure, u0, v0, first, forced):

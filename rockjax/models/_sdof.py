@@ -78,6 +78,7 @@ class SDOF(AbstractRockingModel):
     kinematics_of_u: ClassVar[bool] = True
     recrossing_conditions: ClassVar[bool] = False
     contacts: ClassVar[int] = 1
+    peak_from_state: ClassVar[bool] = True
 
     @property
     def impacts_accumulate(self) -> bool:

@@ -118,6 +118,7 @@ class TwoSpring2DOF(AbstractRockingModel):
     kinematics_of_u: ClassVar[bool] = False  # theta, uplift: of both corners, not u
     recrossing_conditions: ClassVar[bool] = False
     contacts: ClassVar[int] = 2  # two corners, each lifting off and landing on its own
+    peak_from_state: ClassVar[bool] = False  # u is the top mass's, from the geometry
     impacts_accumulate: ClassVar[bool] = False
 
     def peak_coordinate(self, structure, y, mode):

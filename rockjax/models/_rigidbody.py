@@ -152,17 +152,20 @@ def angular_acceleration(s, theta, theta_dot, sign, lifted, a_g):
     `a_g` [m/s²] (the equations of the module docstring). With $R_c\sin\alpha_c = B$ and
     $R_c\cos\alpha_c = H_c$, $R_c\sin(\alpha_c - \sigma\theta) = B\cos\theta -
     \sigma H_c\sin\theta$ and $R_c\cos(\alpha_c - \sigma\theta) = H_c\cos\theta +
-    \sigma B\sin\theta$: one sine and one cosine for both branches (the batched fast path
-    evaluates this four times per RK4 step; the inertias divide the structure's constants,
-    not the batch's arrays)."""
+    \sigma B\sin\theta$: one sine and one cosine for both branches, and one expression,
+    $-[(k_1\cos\theta + k_2)\sin\theta + k_3\cos\theta + a_g(k_4\cos\theta +
+    k_5\sin\theta)]$, whose coefficients the mode selects (the batched fast path evaluates
+    this four times per RK4 step: selecting five coefficients costs less than both
+    branches; the inertias divide the structure's constants, not the batch's arrays)."""
     M = _mass(s)
     sn, c = sincos(theta)
     ic, io = 1.0 / centre_inertia(s), 1.0 / s.I_O
-    centre = -((2.0 * s.k_f * s.B**2 * ic * c - s.W * s.H_c * ic) * sn
-               + a_g * (M * s.H_c * ic) * c)
-    corner = -(sign * (s.W * io) * (s.B * c - sign * s.H_c * sn)
-               + a_g * (M * io) * (s.H_c * c + sign * s.B * sn))
-    return jnp.where(lifted, corner, centre)
+    inv = jnp.where(lifted, io, ic)  # k2 = -W H_c / I, k4 = M H_c / I with I the pivot's
+    k1 = jnp.where(lifted, 0.0, 2.0 * s.k_f * s.B**2 * ic)
+    k3 = jnp.where(lifted, sign * (s.W * s.B * io), 0.0)
+    k5 = jnp.where(lifted, sign * (M * s.B * io), 0.0)
+    return -((k1 * c - s.W * s.H_c * inv) * sn + k3 * c
+             + a_g * ((M * s.H_c * inv) * c + k5 * sn))
 
 
 class RigidBody(AbstractRockingModel):

@@ -21,8 +21,10 @@ they happen: one trial step for the whole batch, and the few members with an eve
 (`_compacted`), instead of every piece running for the whole batch whenever one member
 needs it (measured in `benchmarks/run.py --only yardstick`, beside the floor of
 `benchmarks/floor.py`: the same RK4 without events). The whole-batch trial computes the
-conditions at both ends without their rates (only the sub-batch locates roots), and the
-sub-batch is indexed by `first_members`, not `jnp.nonzero`. Events come in bursts: below
+conditions at its end without their rates (only the sub-batch locates roots; those at the
+start only in a step where a member ends one exactly at 0), the peak's interior turn only
+in a step where it could raise a member's peak (`piece_peak`'s Bernstein-hull test), and
+the sub-batch is indexed by `first_members`, not `jnp.nonzero`. Events come in bursts: below
 lift-off the response is linear in the scale, so the members of a scale sweep cross
 u = 0 in the same step, and the sub-batch then takes several rounds. Its rounds are a
 `lax.while_loop`, so the compacted path is not reverse-differentiable; only

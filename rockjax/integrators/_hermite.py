@@ -93,11 +93,12 @@ def piece_peak(u0, v0, u1, v1, h, floor=None):
 
     With `floor` (the running peak, shape of u0), the interior turn is only computed when
     it could exceed it for some member: the interpolant lies within the convex hull of its
-    Bernstein control points u0, u0 + m0/3, u1 - m1/3, u1 (m = v h), so where their largest
-    |.| is at most `floor` the turn cannot raise the running peak, and the peak of the
-    ends is returned instead (the same running peak, bit for bit). Within a step only a few
-    members turn with a chance to raise their peak; the turn's Newton iterations (three
-    divisions) then run only in the steps where one does (`jax.lax.cond`)."""
+    Bernstein control points u0, u0 + m0/3, u1 - m1/3, u1 (m = v h), so where the larger
+    |.| of the two inner ones is at most `floor`, |u| stays below max(|u0|, |u1|, floor)
+    and the turn cannot raise the running peak past the ends: the peak of the ends is
+    returned instead (the same running peak, bit for bit). Few members turn with a chance
+    to raise their peak; the turn's Newton iterations (three divisions) run only in the
+    steps where one does (`jax.lax.cond`)."""
     m0 = v0 * h
     m1 = v1 * h
     turn = v0 * v1 < 0

@@ -690,7 +690,8 @@ def test_compacted_batch_with_leading_zeros_equals_small_chunks(column, record):
     exactly, their first condition exactly 0 at both ends of each step, where the compacted
     step decides from the conditions at the step's start too (`_compacted`'s `exact`),
     while the other half rock on the record without them, with events in the same steps.
-    The same results as chunks below `COMPACT_MIN`, bit for bit."""
+    The same results as chunks below `COMPACT_MIN`, to rounding (as above: bit for bit on
+    JAX 0.10; 1.3e-13 of one member's peak measured on JAX 0.12)."""
     dt, accel = record
     recs = [rockjax.Record(dt=dt, accel=np.concatenate([np.zeros(int(round(1.0 / dt))),
                                                         accel])),
@@ -702,5 +703,5 @@ def test_compacted_batch_with_leading_zeros_equals_small_chunks(column, record):
     assert len(set(np.asarray(big.status).tolist())) >= 2  # completed and overturned
     np.testing.assert_array_equal(big.status, small.status)
     np.testing.assert_array_equal(big.n_impacts, small.n_impacts)
-    np.testing.assert_array_equal(big.peak_u, small.peak_u)
-    np.testing.assert_array_equal(big.t_overturn, small.t_overturn)
+    np.testing.assert_allclose(big.peak_u, small.peak_u, rtol=1e-12)
+    np.testing.assert_allclose(big.t_overturn, small.t_overturn, rtol=1e-12)

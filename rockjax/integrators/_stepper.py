@@ -243,14 +243,14 @@ def _advance(model, cfg, s, r, st, ye, hp, which, event, step, failed, t_ev, a_e
     """The bookkeeping of a piece: peaks, the jump at an event, the record."""
     q0, dq0 = per_member(model.peak_coordinate, s)(st.y, st.mode)
     q1, dq1 = per_member(model.peak_coordinate, s)(ye, st.mode)
-    u_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(hp)
+    q_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(hp)
     peak = piece_peak(q0, dq0, q1, dq1, hp)
     up = per_member(model.tracked_uplift, s)(ye, st.mode)
-    tally = tree_where(step, tally_peak(st.tally, peak, up, u_ot), st.tally)
+    tally = tree_where(step, tally_peak(st.tally, peak, up, q_ot), st.tally)
     yj, mj, flags = per_member(model.jump, s)(ye, st.mode, which, r, a_ev)
     flags = jax.tree_util.tree_map(lambda f: f & event, flags)
     tally = jax.vmap(lambda tl, fl, t, uo: tally_event(tl, fl, t, cfg.max_impacts, uo),
-                     in_axes=-1, out_axes=-1)(tally, flags, t_ev, u_ot)
+                     in_axes=-1, out_axes=-1)(tally, flags, t_ev, q_ot)
     tally = tally_fail(tally, failed)
     return Member(
         y=jnp.where(step, jnp.where(event, yj, ye), st.y),
@@ -357,7 +357,7 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     # the easy members: exactly a piece without an event (its peak, then the step's end)
     q0, dq0 = per_member(model.peak_coordinate, s)(st.y, st.mode)
     q1, dq1 = per_member(model.peak_coordinate, s)(y1, st.mode)
-    u_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(a0)
+    q_ot = per_member(lambda s_, _: model.peak_limit(s_), s)(a0)
     # the interior turn only where it could raise a member's peak (bit for bit the same),
     # where the coordinate is read from the state (else evaluating it for the test and
     # again for the peak costs more than the turn: the 2-DOF body, 15 %)
@@ -366,7 +366,7 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     up = per_member(model.tracked_uplift, s)(y1, st.mode)
     st = eqx.tree_at(lambda m: (m.y, m.tally), st,
                      (jnp.where(easy, y1, st.y),
-                      tree_where(easy, tally_peak(st.tally, peak, up, u_ot), st.tally)))
+                      tree_where(easy, tally_peak(st.tally, peak, up, q_ot), st.tally)))
 
     width = _compact_width(n)
 

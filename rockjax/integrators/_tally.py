@@ -15,7 +15,8 @@ from .._status import STATUS
 
 class Tally(eqx.Module):
     """Per-member record of a run (scalars, and `impact_times` of shape (K,), K = 0 when
-    the times are not stored)."""
+    the times are not stored). `peak_u` is the peak |u| [m]; in the batched stepper, the
+    peak |q| of the model's `peak_coordinate` (its caller applies `u_of_peak`)."""
 
     n_impacts: jnp.ndarray
     impact_times: jnp.ndarray
@@ -57,7 +58,8 @@ def tally_start(model, structure, y, mode, n_store, failed=False, coordinate=Fal
 
 
 def tally_peak(tally, peak_u, uplift, u_ot):
-    """Fold a piece's peak |u| [m] (clipped at u_overturn) and uplift [m] into the record."""
+    """Fold a piece's peak |u| [m] (clipped at `u_ot`, its value at overturning; the peak
+    coordinate's in the batched stepper) and uplift [m] into the record."""
     return eqx.tree_at(
         lambda t: (t.peak_u, t.peak_uplift),
         tally,

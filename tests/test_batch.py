@@ -654,6 +654,25 @@ def test_compacted_batch_equals_small_chunks(column, gm, model, rtol):
     np.testing.assert_allclose(big.t_overturn, small.t_overturn, rtol=rtol)
 
 
+def test_event_rounds_is_the_function_benchmarks_event_cost_replaces():
+    """`benchmarks/event_cost.py` times the compacted step without its events by replacing
+    `_stepper._event_rounds` with a function that returns its fifth argument (the state)
+    and counts the members with events from its last (`hard`): a renamed, reordered or
+    inlined function would leave the benchmark timing something else."""
+    import inspect
+    import pathlib
+
+    from rockjax.integrators import _stepper
+
+    params = list(inspect.signature(_stepper._event_rounds).parameters)
+    assert params[4] == "st" and params[-1] == "hard", params
+    assert "return _event_rounds(" in inspect.getsource(_stepper._compacted)
+    bench = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "event_cost.py"
+    src = bench.read_text()
+    assert "_stepper._event_rounds = lambda *args: args[4]" in src
+    assert "hard = args[-1]" in src
+
+
 def test_piece_peak_skips_the_turn_only_where_it_cannot_raise_the_peak():
     """The compacted step computes a step's interior turn (`piece_peak` with the running
     peak as `floor`) only when a member's Bernstein hull exceeds its running peak: the

@@ -331,7 +331,6 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
     non-finite state) take `substep`'s pieces in a sub-batch of just them, gathered and
     scattered back. Same results as `substep` for the whole batch, at the cost of one
     trial step plus the pieces of the few members that need them."""
-    n = a0.shape[0]
     da = (a1 - a0) / L
     tau = jnp.zeros_like(a0)
     active = ~st.tally.done & (tau < L)
@@ -368,9 +367,22 @@ def _compacted(model, cfg, s, r, st, t_start, L, a0, a1):
                      (jnp.where(easy, y1, st.y),
                       tree_where(easy, tally_peak(st.tally, peak, up, q_ot), st.tally)))
 
+    return _event_rounds(model, cfg, s, r, st, t_start, L, a0, a1, y1, hard)
+
+
+def _event_rounds(model, cfg, s, r, st, t_start, L, a0, a1, y1, hard):
+    """The members `hard` of a compacted step (an event, a non-finite trial step) take
+    `substep`'s pieces from the step's start, `_compact_width` of them at a time, gathered
+    into a sub-batch and scattered back. Most steps with events take one round, but events
+    cluster: in a batch of scales of one record the members still in the linear range
+    cross u = 0 in the same step, and such steps take many (on 10,000 El Centro runs, 2 %
+    of the member-steps carry an event, at about 200 ns each, 59 % of the batch's time:
+    `benchmarks/event_cost.md`, whose script replaces this function to time the step
+    without it)."""
+    n = a0.shape[0]
     width = _compact_width(n)
 
-    def rounds(carry):  # up to `width` members with events at a time (usually one round)
+    def rounds(carry):  # up to `width` members with events at a time
         st, todo = carry
         idx = first_members(todo, width)
         # t_start is per member when the members have their own grid steps

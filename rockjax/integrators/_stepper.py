@@ -376,7 +376,7 @@ def _event_rounds(model, cfg, s, r, st, t_start, L, a0, a1, y1, hard):
     into a sub-batch and scattered back. Most steps with events take one round, but events
     cluster: in a batch of scales of one record the members still in the linear range
     cross u = 0 in the same step, and such steps take many (on 10,000 El Centro runs, 2 %
-    of the member-steps carry an event, at about 200 ns each, 59 % of the batch's time:
+    of the member-steps carry an event, at about 190 ns each, 59 % of the batch's time:
     `benchmarks/event_cost.md`, whose script replaces this function to time the step
     without it)."""
     n = a0.shape[0]

@@ -26,24 +26,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
 import subprocess
 import sys
 import time
 
 import numpy as np
+from _shared import shared_folder
 
 HERE = pathlib.Path(__file__).resolve().parent
 T1 = 40.0
 
 
 def _record(path):
-    if path:
-        return path
-    env = os.environ.get("ROCKJAX_SHARED_DATA")
-    folder = pathlib.Path(env) if env else HERE.parent.parent / "shared" / "data" / "ground_motions"
-    return str(folder / "IELC180.AT2")
+    return path or str(shared_folder() / "IELC180.AT2")
 
 
 def child(mode, record, n, repeats):
@@ -58,7 +54,6 @@ def child(mode, record, n, repeats):
     from rockjax.integrators import _stepper
 
     rockjax.configure()
-    sys.path.insert(0, str(HERE))
     import floor
 
     counts = []
@@ -80,6 +75,9 @@ def child(mode, record, n, repeats):
     scales = np.linspace(0.25, 1.5, n)
     steps = floor.member_steps(T1, float(gm.dt), 4, n)
     n_dev = len(jax.local_devices())
+    if n < _stepper.COMPACT_MIN * n_dev:  # smaller batches have no event rounds to split off
+        sys.exit(f"--runs {n}: at least {_stepper.COMPACT_MIN * n_dev} on {n_dev} devices "
+                 f"(the compacted step starts at {_stepper.COMPACT_MIN} runs per device)")
     f_inp = floor.floor_inputs(s, gm, T1)
 
     def batch():
@@ -134,7 +132,9 @@ def main(argv=None):
         print(f"{mode} ...", flush=True)
         out = subprocess.run([sys.executable, __file__, "--child", mode, "--record", record,
                               "--runs", str(args.runs), "--repeats", str(args.repeats)],
-                             check=True, capture_output=True, text=True)
+                             capture_output=True, text=True)
+        if out.returncode:
+            sys.exit(f"{mode}: {out.stderr.strip().splitlines()[-1]}")
         res[mode] = json.loads(out.stdout.strip().splitlines()[-1])
     d, e, c = res["default"], res["no-events"], res["count"]
     fd, fe = d["ns_per_member_step"]["floor"], e["ns_per_member_step"]["floor"]

@@ -20,6 +20,7 @@ import sys
 import time
 
 import numpy as np
+from _shared import shared_folder
 
 import rockjax
 
@@ -33,13 +34,6 @@ RECORDS = (
     ("ChiChi.dat", None),
     ("Northridge_Sylmar_County.dat", "m/s2"),
 )
-
-
-def default_folder():
-    env = os.environ.get("ROCKJAX_SHARED_DATA")
-    if env:
-        return pathlib.Path(env)
-    return pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "ground_motions"
 
 
 def scales(text):
@@ -59,7 +53,7 @@ def timed(fn, repeats):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--records", type=pathlib.Path, default=default_folder())
+    ap.add_argument("--records", type=pathlib.Path, default=shared_folder())
     ap.add_argument("--scales", type=scales, default=scales("0.2:6:40"))
     ap.add_argument("--repeats", type=int, default=2)
     a = ap.parse_args(argv)

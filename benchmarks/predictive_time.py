@@ -25,7 +25,8 @@ import numpy as np
 import rockjax
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from fragility_time import default_folder, RECORDS, scales  # noqa: E402
+from _shared import shared_folder  # noqa: E402
+from fragility_time import RECORDS, scales  # noqa: E402
 
 rockjax.configure()  # float64 and one CPU device per core, before any computation
 
@@ -40,7 +41,7 @@ def draws_of(n, seed=0):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--records", type=pathlib.Path, default=default_folder())
+    ap.add_argument("--records", type=pathlib.Path, default=shared_folder())
     ap.add_argument("--draws", type=int, default=200)
     ap.add_argument("--scales", type=scales, default=scales("0.2:6:40"))
     ap.add_argument("--repeats", type=int, default=1)

@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
 import tempfile
 import time
 import warnings
 
 import numpy as np
+from _shared import shared_folder
 
 import identification
 import rockjax
@@ -46,13 +46,8 @@ RECORDS = {"IELC180.AT2": (1.0, 1.5), "RSN753_LOMAP_CLS000.AT2": (1.0, 1.5)}
 TOL = {"k_f": 5.0, "r": 5.0, "c_f": 20.0}  # the acceptance's tolerances [%]
 
 
-def shared() -> pathlib.Path:
-    env = os.environ.get("ROCKJAX_SHARED_DATA")
-    return pathlib.Path(env) if env else HERE.parent.parent / "shared" / "data" / "ground_motions"
-
-
 def make_run(name, scale, model, seed, folder):
-    rec = rockjax.read_record(shared() / name)
+    rec = rockjax.read_record(shared_folder() / name)
     truth = dict(TRUTH, **({"c_f": C_F} if model == "two_spring_2dof" else {}))
     run = identification.synthetic_shake_table(
         rockjax.mcmanus_column(), rec, scale, model=model, truth=truth, noise=NOISE,

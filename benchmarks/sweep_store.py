@@ -34,6 +34,7 @@ import sys
 import time
 
 import numpy as np
+from _shared import shared_folder
 
 HERE = pathlib.Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -44,8 +45,7 @@ RECORDS = {"ChiChi.dat": None, "IELC180.AT2": None, "Northridge_Sylmar_County.da
 
 
 def shared_records():
-    env = os.environ.get("ROCKJAX_SHARED_DATA")
-    folder = pathlib.Path(env) if env else REPO.parent / "shared" / "data" / "ground_motions"
+    folder = shared_folder()
     missing = [n for n in RECORDS if not (folder / n).is_file()]
     if missing:
         sys.exit(f"records missing in {folder}: {missing} (set ROCKJAX_SHARED_DATA)")
